@@ -1,0 +1,77 @@
+"""brdfjax: fit the five-parameter BRDF model of Zhang, Wu, Cao and Zhang to measured data.
+
+    import brdfjax
+    data = brdfjax.load("data/synthetic/white_paint.csv")
+    result = brdfjax.fit(data, validate_incidences=[21, 52])
+    brdfjax.reflectance(result.params, 0.0)
+
+Fitting needs float64, so brdfjax turns on JAX's 64-bit mode (unless ``JAX_ENABLE_X64=0``
+is set); float32 inputs are still evaluated in float32. Names are imported on first use,
+so ``import brdfjax`` (and the CLI's ``--help``) stays fast.
+"""
+
+import importlib
+import os
+import sys
+
+if "jax" in sys.modules:
+    if os.environ.get("JAX_ENABLE_X64", "1") != "0":
+        sys.modules["jax"].config.update("jax_enable_x64", True)
+else:
+    os.environ.setdefault("JAX_ENABLE_X64", "1")
+
+__version__ = "0.1.0"
+
+_EXPORTS = {
+    "brdf": "brdfjax.model",
+    "projected_brdf": "brdfjax.model",
+    "evaluate": "brdfjax.model",
+    "Params": "brdfjax.model",
+    "PAPER_SAMPLES": "brdfjax.model",
+    "PARAMETER_NAMES": "brdfjax.model",
+    "scene": "brdfjax.geometry",
+    "ShadowingConstants": "brdfjax.geometry",
+    "reflectance": "brdfjax.reflectance",
+    "Measurements": "brdfjax.measurements",
+    "DataError": "brdfjax.measurements",
+    "load": "brdfjax.formats",
+    "save": "brdfjax.formats",
+    "fit": "brdfjax.fit",
+    "FitResult": "brdfjax.fit",
+    "Bounds": "brdfjax.bounds",
+    "make_bounds": "brdfjax.bounds",
+    "default_bounds": "brdfjax.bounds",
+}
+
+__all__ = [
+    "PAPER_SAMPLES",
+    "PARAMETER_NAMES",
+    "Bounds",
+    "DataError",
+    "FitResult",
+    "Measurements",
+    "Params",
+    "ShadowingConstants",
+    "brdf",
+    "default_bounds",
+    "evaluate",
+    "fit",
+    "load",
+    "make_bounds",
+    "projected_brdf",
+    "reflectance",
+    "save",
+    "scene",
+]
+
+
+def __getattr__(name):
+    if name not in _EXPORTS:
+        raise AttributeError(f"module 'brdfjax' has no attribute {name!r}")
+    value = getattr(importlib.import_module(_EXPORTS[name]), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return __all__

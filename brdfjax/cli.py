@@ -1,0 +1,64 @@
+"""The ``brdfjax`` command line: one sub-command per task, each in `brdfjax.commands`.
+
+User errors (bad data, bad options, missing files, instrument faults) become one line on
+stderr and exit code 1; usage errors exit 2 (argparse). Nothing heavy is imported until a
+command runs, so ``--help`` is instant.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+from pathlib import Path
+
+# Each module defines ``register(subparsers)``, adding its commands with a ``run`` default.
+COMMAND_MODULES = (
+    "brdfjax.commands.fitting",
+    "brdfjax.commands.data",
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="brdfjax",
+        description="Fit the five-parameter BRDF model (Zhang, Wu, Cao, Zhang) to measured "
+                    "BRDF data.")
+    parser.add_argument("--version", action="version", version="brdfjax 0.1.0")
+    subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name in COMMAND_MODULES:
+        importlib.import_module(name).register(subparsers)
+    return parser
+
+
+def enable_compilation_cache() -> None:
+    """Keep compiled functions on disk so later runs skip XLA compilation.
+
+    The directory is ``$BRDFJAX_CACHE`` or ``~/.cache/brdfjax/jax``; every compilation is
+    kept (JAX's default keeps only those over 1 s, and ours are shorter).
+    """
+    import jax
+
+    directory = os.environ.get("BRDFJAX_CACHE", str(Path.home() / ".cache" / "brdfjax" / "jax"))
+    jax.config.update("jax_compilation_cache_dir", directory)
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    from brdfjax.measurements import DataError
+
+    try:
+        return args.run(args) or 0
+    except (DataError, ValueError, OSError) as problem:
+        print(f"brdfjax {args.command}: error: {problem}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(f"brdfjax {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

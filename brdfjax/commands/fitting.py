@@ -1,0 +1,190 @@
+"""Commands that fit: ``fit``, ``demo`` (the paper's white-paint fit) and ``compare``."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from brdfjax.commands import add_reader_options, angles, reader_options
+
+DATA = Path(__file__).resolve().parents[2] / "data"
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("fit", help="fit the model to a measurement file",
+                              description="Fit kb, kr, a, b, kd by minimising E of Eq. (6).")
+    p.add_argument("file")
+    p.add_argument("--method", choices=("hybrid", "ga", "lm"), default="hybrid",
+                   help="hybrid: genetic search then Levenberg-Marquardt (default)")
+    p.add_argument("--seed", type=int, default=0)
+    group = p.add_mutually_exclusive_group()
+    group.add_argument("--train-incidence", type=angles, metavar="DEG",
+                       help="fit on these incidences only; the others are held out")
+    group.add_argument("--validate-incidence", type=angles, metavar="DEG",
+                       help="hold these incidences out of the fit and score them after")
+    p.add_argument("--bound", action="append", default=[], metavar="NAME=LO:HI",
+                   help="override a parameter's search range, e.g. b=-80:10")
+    p.add_argument("--json", metavar="OUT", help="write the result as JSON")
+    p.add_argument("--plot", metavar="OUT", help="draw data and fitted curves (PNG)")
+    p.add_argument("--plot-3d", metavar="OUT",
+                   help="draw the fitted f_r cos(theta_r) over the hemisphere (PNG)")
+    p.add_argument("--incidences-3d", type=angles, metavar="DEG",
+                   help="incidences for --plot-3d (default: those of the data, up to 3)")
+    p.add_argument("--log", action="store_true", help="log vertical axis in --plot")
+    add_reader_options(p)
+    p.set_defaults(run=run_fit)
+
+    p = subparsers.add_parser("demo", help="the paper's white-paint fit on bundled data",
+                              description="Reflectance of the paper's five samples, then a "
+                                          "fit of the bundled (synthetic) white-paint data "
+                                          "as the paper did, beside the paper's numbers.")
+    p.add_argument("--out", default="out", help="folder for the figures (default: out)")
+    p.set_defaults(run=run_demo)
+
+    p = subparsers.add_parser("compare", help="GA vs gradient vs scipy on one file",
+                              description="Run time against error of each fitting method "
+                                          "on the same data, in one process.")
+    p.add_argument("file")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--repeats", type=int, default=3, help="timed runs per method")
+    add_reader_options(p)
+    p.set_defaults(run=run_compare)
+
+
+def parse_bounds(items) -> dict:
+    """``["b=-80:10", ...]`` as ``{"b": (-80.0, 10.0)}``."""
+    ranges = {}
+    for item in items:
+        name, _, span = item.partition("=")
+        low, _, high = span.partition(":")
+        try:
+            ranges[name.strip()] = (float(low), float(high))
+        except ValueError:
+            raise ValueError(f"--bound {item!r}: write NAME=LO:HI, e.g. b=-80:10") from None
+    return ranges
+
+
+def held_out(data, args) -> list:
+    """Incidences to hold out, from --train-incidence or --validate-incidence."""
+    if args.validate_incidence is not None:
+        return list(args.validate_incidence)
+    if args.train_incidence is None:
+        return []
+    train = np.round(args.train_incidence, 6)
+    missing = set(train) - set(data.incidences_deg)
+    if missing:
+        raise ValueError(f"--train-incidence {sorted(missing)} deg not in the data "
+                         f"(it has {list(data.incidences_deg)})")
+    return [x for x in data.incidences_deg if x not in set(train)]
+
+
+def run_fit(args) -> None:
+    from brdfjax.bounds import make_bounds
+    from brdfjax.cli import enable_compilation_cache
+    from brdfjax.formats import load
+
+    enable_compilation_cache()
+    from brdfjax.fit import fit
+
+    data = load(args.file, **reader_options(args))
+    result = fit(data, args.method, seed=args.seed, validate_incidences=held_out(data, args),
+                 bounds=make_bounds(parse_bounds(args.bound)))
+    print(summary(result, data.name))
+    write_outputs(result, data, args)
+
+
+def write_outputs(result, data, args) -> None:
+    """The files asked for, each written whole or not at all, after all computing is done."""
+    from brdfjax.formats import replace_atomically, write_atomically
+
+    if args.json:
+        write_atomically(args.json, json.dumps(result.to_dict(), indent=2) + "\n")
+    if args.plot:
+        from brdfjax.plot import plot_fit
+
+        replace_atomically(args.plot, lambda path: plot_fit(
+            data, result.vector, path, held_out=result.validation_incidences, log=args.log,
+            title=f"{data.name}: E = {100 * result.error:.3g} %"))
+    if args.plot_3d:
+        from brdfjax.plot import plot_hemisphere
+
+        incidences = (args.incidences_3d if args.incidences_3d is not None
+                      else data.incidences_deg[:3])
+        replace_atomically(args.plot_3d, lambda path: plot_hemisphere(
+            result.vector, incidences, path, title=f"{data.name}: fitted model"))
+
+
+def summary(result, name: str) -> str:
+    """A readable table of a `brdfjax.fit.FitResult`."""
+    from brdfjax.model import PARAMETER_NAMES
+
+    lines = [f"{name}: {result.method} fit, status {result.status}"]
+    lines += [f"  {k:>3} = {v:14.6g}" + ("   (at a bound)" if k in result.at_bounds else "")
+              for k, v in zip(PARAMETER_NAMES, result.params)]
+    lines.append(f"  E   = {100 * result.error:.4g} % on {len(result.residuals)} points "
+                 f"(incidences {', '.join(f'{x:g}' for x in result.train_incidences)} deg)")
+    for deg, e in result.error_by_incidence.items():
+        lines.append(f"        {deg:6g} deg: E = {100 * e:.4g} %")
+    if result.validation_error is not None:
+        lines.append(f"  held out: E = {100 * result.validation_error:.4g} %")
+        for deg, e in result.validation_by_incidence.items():
+            lines.append(f"        {deg:6g} deg: E = {100 * e:.4g} %")
+    times = ", ".join(f"{k} {v * 1e3:.0f} ms" for k, v in result.timings.items())
+    lines.append(f"  {result.evaluations} model evaluations; {times}")
+    if result.at_bounds:
+        lines.append(f"  note: {', '.join(result.at_bounds)} at the edge of the search box; "
+                     "widen it with --bound NAME=LO:HI")
+    return "\n".join(lines)
+
+
+def run_demo(args) -> None:
+    from brdfjax.cli import enable_compilation_cache
+
+    enable_compilation_cache()
+    from brdfjax.fit import fit
+    from brdfjax.formats import load, replace_atomically
+    from brdfjax.model import PAPER_ERRORS_PERCENT, PAPER_SAMPLES
+    from brdfjax.plot import plot_fit, plot_hemisphere
+    from brdfjax.reflectance import energy_warning, reflectance
+
+    print("Reflectance rho(theta_i) of Eq. (9) for the paper's parameters")
+    print(f"  {'sample':<14} {'0 deg':>8} {'30 deg':>8} {'60 deg':>8}")
+    for name, params in PAPER_SAMPLES.items():
+        rho = np.asarray(reflectance(params, np.radians([0.0, 30.0, 60.0])))
+        flag = "   > 1: not energy-conserving" if energy_warning(rho) else ""
+        print(f"  {name:<14} " + " ".join(f"{r:8.4f}" for r in rho) + flag)
+
+    path = DATA / "synthetic" / "white_paint.csv"
+    data = load(path)
+    print(f"\nFit of {path.name} (SYNTHETIC stand-in: the paper's data are not published), "
+          "on 10/30/45/60 deg, validated on 21/52 deg as in the paper")
+    result = fit(data, validate_incidences=[21, 52])
+    paper = PAPER_SAMPLES["white_paint"]
+    print(f"  {'':>3} {'fitted':>12} {'paper':>12}")
+    for key in paper._fields:
+        print(f"  {key:>3} {getattr(result.params, key):12.5g} {getattr(paper, key):12.5g}")
+    print(f"  E (fit)      {100 * result.error:8.4f} %   paper (real data) "
+          f"{PAPER_ERRORS_PERCENT['white_paint']} %")
+    print(f"  E (held out) {100 * result.validation_error:8.4f} %")
+    rho0 = float(reflectance(result.params, 0.0))
+    print(f"  rho(0 deg)   {100 * rho0:8.2f} %   paper 73.4 % (integrating sphere 79.6 %)")
+    print(f"  status {result.status}; fit took {1e3 * result.timings['total']:.0f} ms "
+          "(first call includes compilation)")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    replace_atomically(out / "demo_fit.png", lambda p: plot_fit(
+        data, result.vector, p, held_out=[21, 52],
+        title="white paint (synthetic): fit on 10/30/45/60 deg, 21/52 deg held out"))
+    replace_atomically(out / "demo_hemisphere.png", lambda p: plot_hemisphere(
+        result.vector, [10, 30, 60], p, title="white paint: fitted model over the hemisphere"))
+    print(f"\nFigures: {out / 'demo_fit.png'}, {out / 'demo_hemisphere.png'}")
+
+
+def run_compare(args) -> None:
+    from brdfjax.compare import compare, format_table
+    from brdfjax.formats import load
+
+    data = load(args.file, **reader_options(args))
+    print(format_table(compare(data, seed=args.seed, repeats=args.repeats)))

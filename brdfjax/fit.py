@@ -1,0 +1,209 @@
+"""Fitting a measurement set: genetic search, Levenberg-Marquardt polish, and the result.
+
+`fit` is the one entry point. The default ``hybrid`` method runs `brdfjax.evolve.evolve`
+to find the basin, then `brdfjax.polish.polish` from ``starts`` distinct good members at
+once, and keeps the best. ``ga`` stops after the genetic search; ``lm`` polishes from given
+parameters, or from random points of the box. Incidence angles can be held out for
+validation, as the paper does (fit 10/30/45/60 deg, validate 21/52 deg).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from brdfjax.bounds import Bounds, default_bounds, from_unit, to_free, to_unit
+from brdfjax.evolve import EvolveConfig, evolve
+from brdfjax.geometry import PAPER_CONSTANTS, ShadowingConstants
+from brdfjax.measurements import DataError, Measurements
+from brdfjax.model import PARAMETER_NAMES, Params
+from brdfjax.objective import error, problem, residuals
+from brdfjax.polish import distinct_members, polish
+
+METHODS = ("hybrid", "ga", "lm")
+
+
+@dataclass
+class FitResult:
+    """The outcome of `fit`.
+
+    Attributes:
+        params: the fitted parameters by name.
+        error: E of Eq. (6) on the training points, as a fraction.
+        error_by_incidence: E on each training incidence alone, keyed by degrees.
+        validation_error: E on the held-out incidences together (None if none held out).
+        validation_by_incidence: E on each held-out incidence alone.
+        residuals: the training residual vector (its squared norm is ``error``).
+        status: ``converged``, ``max_steps`` (LM hit its step cap), ``failed`` (no finite
+            result), or ``search_only`` (the ``ga`` method does not polish).
+        at_bounds: names of parameters within 1e-6 of a bound (in unit-cube terms).
+        evaluations: model evaluations of the whole data set (a Jacobian counts 5).
+        lm_steps: LM steps of each start; lm_success: each start's optimistix status.
+        timings: wall seconds per stage (``evolve``, ``polish``, ``total``).
+        history: the genetic search's best E after each generation.
+        method: the method used; train_incidences, validation_incidences: in degrees.
+    """
+
+    params: Params
+    error: float
+    error_by_incidence: dict
+    validation_error: float | None
+    validation_by_incidence: dict
+    residuals: np.ndarray
+    status: str
+    at_bounds: list
+    evaluations: int
+    lm_steps: np.ndarray
+    lm_success: np.ndarray
+    timings: dict
+    history: np.ndarray
+    method: str
+    train_incidences: list
+    validation_incidences: list
+    bounds: Bounds = field(repr=False)
+    constants: ShadowingConstants = field(repr=False, default=PAPER_CONSTANTS)
+
+    @property
+    def vector(self) -> np.ndarray:
+        """The parameters as an array ordered kb, kr, a, b, kd."""
+        return np.array(self.params, dtype=float)
+
+    def to_dict(self) -> dict:
+        """A JSON-ready summary (E as a fraction, incidences as string keys)."""
+        return {
+            "params": dict(zip(PARAMETER_NAMES, map(float, self.params))),
+            "error": self.error,
+            "error_by_incidence": {f"{k:g}": v for k, v in self.error_by_incidence.items()},
+            "validation_error": self.validation_error,
+            "validation_by_incidence": {f"{k:g}": v
+                                        for k, v in self.validation_by_incidence.items()},
+            "status": self.status,
+            "at_bounds": self.at_bounds,
+            "method": self.method,
+            "evaluations": self.evaluations,
+            "lm_steps": [int(s) for s in self.lm_steps],
+            "timings": self.timings,
+        }
+
+
+def split(data: Measurements, validate_incidences=None) -> tuple[Measurements, Measurements]:
+    """Training and held-out subsets by incidence angle (degrees)."""
+    if not validate_incidences:
+        return data, data.select(np.zeros(len(data), dtype=bool))
+    mask = _incidence_mask(data, validate_incidences)
+    train, held = data.select(~mask), data.select(mask)
+    missing = set(np.round(validate_incidences, 6)) - set(held.incidences_deg)
+    if missing:
+        raise DataError(f"held-out incidence(s) {_degrees(sorted(missing))} deg not in the data",
+                        data.metadata.get("source"),
+                        hint=f"the data have {_degrees(data.incidences_deg)} deg")
+    if len(train.incidences_deg) == 0:
+        raise DataError("nothing left to fit after holding out "
+                        f"{_degrees(validate_incidences)} deg", data.metadata.get("source"),
+                        hint="held-out validation needs at least two incidence angles")
+    return train, held
+
+
+def _degrees(values) -> str:
+    return ", ".join(f"{float(x):g}" for x in values)
+
+
+def _incidence_mask(data, degrees):
+    theta = np.degrees(data.theta_i)
+    return np.any(np.abs(theta[:, None] - np.asarray(degrees, float)[None, :]) < 1e-6, axis=1)
+
+
+def fit(data: Measurements, method: str = "hybrid", *, seed: int = 0,
+        validate_incidences=None, bounds: Bounds | None = None, start=None,
+        starts: int = 16, population_size: int = 128, max_generations: int = 60,
+        max_steps: int = 100, config: EvolveConfig | None = None,
+        constants: ShadowingConstants = PAPER_CONSTANTS) -> FitResult:
+    """Fit the five-parameter model to measurements by minimising E of Eq. (6).
+
+    Args:
+        data: the measurements.
+        method: ``hybrid`` (genetic search then LM), ``ga`` or ``lm``.
+        seed: seeds every random choice; the same seed gives the same result.
+        validate_incidences: incidence angles (deg) held out of the fit and scored after.
+        bounds: the search box (`brdfjax.bounds.default_bounds` if None).
+        start: for ``lm``, starting parameters (5,) or (S, 5); random starts if None.
+        starts: how many distinct starts LM polishes (and random starts for ``lm``).
+        population_size, max_generations: genetic-search sizes.
+        max_steps: LM step cap per start.
+        config: genetic-search rates (defaults if None).
+        constants: the shadowing constants of Eq. (3).
+
+    Returns:
+        A `FitResult`.
+    """
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; choose one of {METHODS}")
+    bounds = default_bounds() if bounds is None else bounds
+    train, held = split(data, validate_incidences)
+    prob = problem(train, constants)
+    key = jax.random.key(seed)
+    timings, history, evaluations = {}, np.zeros(0), 0
+    begin = time.perf_counter()
+
+    if method == "lm":
+        if start is None:
+            z = jax.random.uniform(key, (starts, 5), dtype=prob.target.dtype)
+            u0 = to_free(from_unit(z, bounds), bounds)
+        else:
+            u0 = to_free(jnp.atleast_2d(jnp.asarray(start, dtype=prob.target.dtype)), bounds)
+    else:
+        tic = time.perf_counter()
+        searched = evolve(key, prob, bounds, config, population_size=population_size,
+                          max_generations=max_generations)
+        searched.errors.block_until_ready()
+        timings["evolve"] = time.perf_counter() - tic
+        generations = int(searched.generations)
+        history = np.asarray(searched.history)[:generations]
+        evaluations += population_size + generations * (population_size - 4)
+        chosen = distinct_members(searched.population, starts, separation=0.1)
+        u0 = to_free(from_unit(searched.population[chosen], bounds), bounds)
+
+    if method == "ga":
+        best = from_unit(searched.population[0], bounds)
+        status, steps, success = "search_only", np.zeros(0, int), np.zeros(0, bool)
+    else:
+        tic = time.perf_counter()
+        polished = polish(u0, prob, bounds, max_steps=max_steps)
+        polished.errors.block_until_ready()
+        timings["polish"] = time.perf_counter() - tic
+        steps, success = np.asarray(polished.steps), np.asarray(polished.success)
+        evaluations += int(np.sum(steps + 1)) * 6  # a residual and a 5-column Jacobian
+        pick = int(jnp.argmin(polished.errors))
+        best = polished.params[pick]
+        if method == "hybrid" and not polished.errors[pick] <= searched.errors[0]:
+            best = from_unit(searched.population[0], bounds)  # LM made nothing better
+        finite = bool(jnp.isfinite(polished.errors[pick]))
+        status = ("failed" if not finite else
+                  "converged" if success[pick] else "max_steps")
+    timings["total"] = time.perf_counter() - begin
+
+    vector = np.asarray(best, dtype=float)
+    unit = np.asarray(to_unit(best, bounds))
+    at_bounds = [n for n, z in zip(PARAMETER_NAMES, unit) if z < 1e-6 or z > 1 - 1e-6]
+    return FitResult(
+        params=Params(*map(float, vector)),
+        error=float(error(best, prob)),
+        error_by_incidence=_errors_by_incidence(vector, train, constants),
+        validation_error=(float(error(best, problem(held, constants))) if len(held) else None),
+        validation_by_incidence=_errors_by_incidence(vector, held, constants),
+        residuals=np.asarray(residuals(best, prob)),
+        status=status, at_bounds=at_bounds, evaluations=evaluations,
+        lm_steps=steps, lm_success=success, timings=timings, history=history,
+        method=method, train_incidences=[float(x) for x in train.incidences_deg],
+        validation_incidences=[float(x) for x in held.incidences_deg],
+        bounds=bounds, constants=constants)
+
+
+def _errors_by_incidence(vector, data: Measurements, constants) -> dict:
+    """E of Eq. (6) on each incidence angle alone, keyed by degrees."""
+    return {float(deg): float(error(vector, problem(data.at_incidences([deg]), constants)))
+            for deg in data.incidences_deg}

@@ -1,0 +1,95 @@
+"""brdfjax's CSV format, and the message and exit code of every kind of bad input."""
+
+import numpy as np
+import pytest
+
+from brdfjax.cli import main
+from brdfjax.formats import load, save
+from brdfjax.measurements import DataError, Measurements
+from brdfjax.synthetic import paper_sample
+
+HEADER = "theta_i,theta_r,phi_r,brdf\n"
+GOOD_ROWS = "".join(f"{ti},{tr},180,{0.1 + 0.001 * tr}\n" for ti in (10, 30) for tr in (0, 20, 40))
+
+
+def test_round_trip_keeps_everything(tmp_path):
+    data = paper_sample("khaki_paint", seed=7)
+    save(data, tmp_path / "k.csv")
+    back = load(tmp_path / "k.csv")
+    for name in ("theta_i", "theta_r", "phi_r", "brdf", "sigma"):
+        np.testing.assert_allclose(getattr(back, name), getattr(data, name), rtol=1e-9,
+                                   atol=1e-12)
+    assert back.metadata["sample"] == "khaki_paint"
+    assert back.metadata["source"].startswith("SYNTHETIC")
+
+
+def test_minimal_form_loads(tmp_path):
+    path = tmp_path / "m.csv"
+    path.write_text(HEADER + GOOD_ROWS)
+    data = load(path)
+    assert len(data) == 6 and data.sigma is None and data.in_plane
+    np.testing.assert_allclose(np.degrees(data.phi_r), 180)
+
+
+def test_columns_in_any_order_with_weight(tmp_path):
+    path = tmp_path / "w.csv"
+    path.write_text("brdf,phi_r,theta_r,theta_i,weight\n0.2,0,30,10,2\n0.3,180,30,10,1\n")
+    data = load(path)
+    np.testing.assert_allclose(data.brdf, [0.2, 0.3])
+    np.testing.assert_allclose(data.weights, [2, 1])
+    np.testing.assert_allclose(np.degrees(data.theta_i), 10)
+
+
+BAD = {
+    "empty": ("", "empty file"),
+    "only comments": ("# sample: x\n", "empty file"),
+    "header only": (HEADER, "no measurements"),
+    "missing column": ("theta_i,theta_r,brdf\n10,20,0.1\n", "missing column phi_r"),
+    "no header": ("10,20,180,0.1\n", "first line is data"),
+    "non-numeric cell": (HEADER + "10,20,180,abc\n", ":2: brdf = 'abc' is not a number"),
+    "short row": (HEADER + "10,20,180\n", ":2: 3 cells"),
+    "NaN": (HEADER + GOOD_ROWS + "10,60,180,nan\n", ":8: brdf is nan"),
+    "inf": (HEADER + GOOD_ROWS + "10,60,180,inf\n", ":8: brdf is inf"),
+    "negative brdf": (HEADER + GOOD_ROWS + "10,60,180,-0.05\n", ":8: brdf = -0.05 is negative"),
+    "angle above 90": (HEADER + GOOD_ROWS + "10,95,180,0.1\n", ":8: theta_r = 95 deg is outside"),
+    "signed angle": (HEADER + GOOD_ROWS + "10,-30,0,0.1\n", ":8: theta_r = -30 deg"),
+    "radians": (HEADER + "".join(f"0.5,{t},3.14159,0.1\n" for t in (0.1, 0.4, 0.8, 1.2)),
+                "look like radians"),
+    "duplicate geometry": (HEADER + GOOD_ROWS + "10,20,180,0.2\n", "appears 2 times"),
+    "unknown column": ("theta_i,theta_r,phi_r,brdf,colour\n10,0,0,1,2\n", "unknown column"),
+}
+
+
+@pytest.mark.parametrize("text,message", BAD.values(), ids=list(BAD))
+def test_bad_file_gets_a_clear_error_and_exit_1(tmp_path, capsys, text, message):
+    path = tmp_path / "bad.csv"
+    path.write_text(text)
+    with pytest.raises(DataError, match=message.replace("(", r"\(")):
+        load(path)
+    out = tmp_path / "result.json"
+    assert main(["fit", str(path), "--json", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "bad.csv" in err and message.split(":")[-1].strip()[:12] in err
+    assert not out.exists()  # nothing half-written
+
+
+def test_unknown_format_and_missing_file(tmp_path, capsys):
+    (tmp_path / "x.txt").write_text("hello")
+    assert main(["info", str(tmp_path / "x.txt")]) == 1
+    assert "unknown format '.txt'" in capsys.readouterr().err
+    assert main(["info", str(tmp_path / "none.csv")]) == 1
+    assert "no such file" in capsys.readouterr().err
+
+
+def test_held_out_validation_needs_two_incidences(tmp_path, capsys):
+    path = tmp_path / "one.csv"
+    path.write_text(HEADER + "".join(f"30,{t},180,0.1\n" for t in range(0, 80, 5)))
+    assert main(["fit", str(path), "--validate-incidence", "30"]) == 1
+    assert "at least two incidence angles" in capsys.readouterr().err
+    assert main(["fit", str(path), "--validate-incidence", "45"]) == 1
+    assert "incidence(s) 45 deg not in the data" in capsys.readouterr().err
+
+
+def test_measurements_reject_mismatched_lengths():
+    with pytest.raises(ValueError, match="theta_r has 2 values"):
+        Measurements([0.1, 0.2, 0.3], [0.1, 0.2], [0, 0, 0], [1, 1, 1])
