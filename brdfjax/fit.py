@@ -20,9 +20,9 @@ from brdfjax.bounds import Bounds, default_bounds, from_unit, to_free, to_unit
 from brdfjax.evolve import EvolveConfig, evolve
 from brdfjax.geometry import PAPER_CONSTANTS, ShadowingConstants
 from brdfjax.measurements import DataError, Measurements
-from brdfjax.model import PARAMETER_NAMES, Params
-from brdfjax.objective import error, problem, residuals
-from brdfjax.polish import distinct_members, polish
+from brdfjax.model import PARAMETER_NAMES, Params, evaluate_projected
+from brdfjax.objective import prepare, problem, relative_error, targets
+from brdfjax.polish import polish, polish_population
 
 METHODS = ("hybrid", "ga", "lm")
 
@@ -149,13 +149,7 @@ def fit(data: Measurements, method: str = "hybrid", *, seed: int = 0,
     timings, history, evaluations = {}, np.zeros(0), 0
     begin = time.perf_counter()
 
-    if method == "lm":
-        if start is None:
-            z = jax.random.uniform(key, (starts, 5), dtype=prob.target.dtype)
-            u0 = to_free(from_unit(z, bounds), bounds)
-        else:
-            u0 = to_free(jnp.atleast_2d(jnp.asarray(start, dtype=prob.target.dtype)), bounds)
-    else:
+    if method != "lm":
         tic = time.perf_counter()
         searched = evolve(key, prob, bounds, config, population_size=population_size,
                           max_generations=max_generations)
@@ -163,47 +157,67 @@ def fit(data: Measurements, method: str = "hybrid", *, seed: int = 0,
         timings["evolve"] = time.perf_counter() - tic
         generations = int(searched.generations)
         history = np.asarray(searched.history)[:generations]
-        evaluations += population_size + generations * (population_size - 4)
-        chosen = distinct_members(searched.population, starts, separation=0.1)
-        u0 = to_free(from_unit(searched.population[chosen], bounds), bounds)
+        evaluations += population_size * (generations + 1)
 
     if method == "ga":
         best = from_unit(searched.population[0], bounds)
         status, steps, success = "search_only", np.zeros(0, int), np.zeros(0, bool)
     else:
         tic = time.perf_counter()
-        polished = polish(u0, prob, bounds, max_steps=max_steps)
+        if method == "hybrid":
+            polished = polish_population(searched.population, prob, bounds, starts=starts,
+                                         max_steps=max_steps)
+        else:
+            polished = polish(_lm_starts(start, starts, key, bounds, prob.target.dtype), prob,
+                              bounds, max_steps=max_steps)
         polished.errors.block_until_ready()
         timings["polish"] = time.perf_counter() - tic
         steps, success = np.asarray(polished.steps), np.asarray(polished.success)
         evaluations += int(np.sum(steps + 1)) * 6  # a residual and a 5-column Jacobian
-        pick = int(jnp.argmin(polished.errors))
+        pick = int(np.argmin(np.asarray(polished.errors)))
         best = polished.params[pick]
-        if method == "hybrid" and not polished.errors[pick] <= searched.errors[0]:
-            best = from_unit(searched.population[0], bounds)  # LM made nothing better
-        finite = bool(jnp.isfinite(polished.errors[pick]))
-        status = ("failed" if not finite else
-                  "converged" if success[pick] else "max_steps")
+        finite = bool(np.isfinite(np.asarray(polished.errors)[pick]))
+        status = "failed" if not finite else "converged" if success[pick] else "max_steps"
     timings["total"] = time.perf_counter() - begin
+    return _result(data, train, held, np.asarray(best, dtype=float), bounds, constants,
+                   method=method, status=status, evaluations=evaluations, lm_steps=steps,
+                   lm_success=success, timings=timings, history=history)
 
-    vector = np.asarray(best, dtype=float)
-    unit = np.asarray(to_unit(best, bounds))
-    at_bounds = [n for n, z in zip(PARAMETER_NAMES, unit) if z < 1e-6 or z > 1 - 1e-6]
+
+def _lm_starts(start, count, key, bounds, dtype):
+    """Unconstrained LM starts: the given parameters, or ``count`` random points of the box."""
+    if start is None:
+        return to_free(from_unit(jax.random.uniform(key, (count, 5), dtype=dtype), bounds),
+                       bounds)
+    return to_free(jnp.atleast_2d(jnp.asarray(start, dtype=dtype)), bounds)
+
+
+_projected = jax.jit(evaluate_projected)
+
+
+def _result(data, train, held, vector, bounds, constants, **details) -> FitResult:
+    """A `FitResult`: E overall, per incidence and held out, from one model evaluation."""
+    geometry = prepare(data, constants)
+    model = np.asarray(_projected(vector, geometry))
+    target, weight = targets(data)
+    is_held = _incidence_mask(data, held.incidences_deg)
+    theta = np.round(np.degrees(data.theta_i), 6)
+
+    def error_on(mask):
+        return relative_error(model[mask], target[mask], weight[mask])
+
+    unit = np.asarray(to_unit(vector, bounds))
+    normalised = weight[~is_held] / np.sum(weight[~is_held] * target[~is_held] ** 2)
     return FitResult(
         params=Params(*map(float, vector)),
-        error=float(error(best, prob)),
-        error_by_incidence=_errors_by_incidence(vector, train, constants),
-        validation_error=(float(error(best, problem(held, constants))) if len(held) else None),
-        validation_by_incidence=_errors_by_incidence(vector, held, constants),
-        residuals=np.asarray(residuals(best, prob)),
-        status=status, at_bounds=at_bounds, evaluations=evaluations,
-        lm_steps=steps, lm_success=success, timings=timings, history=history,
-        method=method, train_incidences=[float(x) for x in train.incidences_deg],
+        error=error_on(~is_held),
+        error_by_incidence={float(d): error_on(theta == d) for d in train.incidences_deg},
+        validation_error=error_on(is_held) if is_held.any() else None,
+        validation_by_incidence={float(d): error_on(theta == d) for d in held.incidences_deg},
+        residuals=np.sqrt(normalised) * (model[~is_held] - target[~is_held]),
+        at_bounds=[n for n, z in zip(PARAMETER_NAMES, unit) if z < 1e-6 or z > 1 - 1e-6],
+        train_incidences=[float(x) for x in train.incidences_deg],
         validation_incidences=[float(x) for x in held.incidences_deg],
-        bounds=bounds, constants=constants)
+        bounds=bounds, constants=constants, **details)
 
 
-def _errors_by_incidence(vector, data: Measurements, constants) -> dict:
-    """E of Eq. (6) on each incidence angle alone, keyed by degrees."""
-    return {float(deg): float(error(vector, problem(data.at_incidences([deg]), constants)))
-            for deg in data.incidences_deg}

@@ -37,18 +37,44 @@ class Problem(NamedTuple):
     weight: jax.Array
 
 
+_scene = jax.jit(scene, static_argnames=("constants", "in_plane"))
+
+
+def prepare(data: Measurements, constants: ShadowingConstants = PAPER_CONSTANTS,
+            dtype=jnp.float64) -> Scene:
+    """The scene of a measurement set (one compiled call; in-plane data take the fast path)."""
+    angles = (np.asarray(x, dtype=dtype) for x in (data.theta_i, data.theta_r, data.phi_r))
+    return _scene(*angles, constants=constants, in_plane=data.in_plane)
+
+
+def targets(data: Measurements) -> tuple[np.ndarray, np.ndarray]:
+    """The measured projected BRDF f_r0 cos(tr) and the weights g of Eq. (6) (host arrays)."""
+    target = data.brdf * np.cos(data.theta_r)
+    weight = np.ones_like(target) if data.weights is None else data.weights
+    return target, weight
+
+
+def relative_error(model_projected, target, weight) -> float:
+    """E of Eq. (6) on host arrays (for reporting on any subset of points)."""
+    return float(np.sum(weight * (model_projected - target) ** 2) / np.sum(weight * target**2))
+
+
 def problem(data: Measurements, constants: ShadowingConstants = PAPER_CONSTANTS,
-            dtype=jnp.float64) -> Problem:
-    """Precompute the geometry of a measurement set and normalise its weights."""
-    geometry = scene(*(np.asarray(x, dtype=dtype) for x in (data.theta_i, data.theta_r,
-                                                              data.phi_r)),
-                     constants, in_plane=data.in_plane)
-    target = np.asarray(data.brdf * np.cos(data.theta_r), dtype=dtype)
-    weight = np.ones_like(target) if data.weights is None else np.asarray(data.weights, dtype)
+            dtype=jnp.float64, geometry: Scene | None = None) -> Problem:
+    """The objective's view of a measurement set: scene, target, normalised weights.
+
+    Args:
+        data: the measurements.
+        constants: the shadowing constants of Eq. (3).
+        dtype: float64 for fitting; float32 halves the cost of a population evaluation.
+        geometry: the scene of ``data`` if already computed.
+    """
+    geometry = prepare(data, constants, dtype) if geometry is None else geometry
+    target, weight = targets(data)
     denominator = np.sum(weight * target**2)
     if not denominator > 0:
         raise ValueError(f"{data.name}: every weighted measurement is zero; nothing to fit")
-    return Problem(geometry, jnp.asarray(target), jnp.asarray(weight / denominator))
+    return Problem(geometry, jnp.asarray(target, dtype), jnp.asarray(weight / denominator, dtype))
 
 
 def residuals(params, prob: Problem) -> jax.Array:

@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import lineax as lx
 import optimistix as optx
 
-from brdfjax.bounds import Bounds, from_free
+from brdfjax.bounds import Bounds, from_free, from_unit, to_free
 from brdfjax.objective import Problem, error, residuals
 
 # Relative and absolute step tolerances: float64 meets 1e-10 (noise-free data reach
@@ -91,6 +91,16 @@ def polish(starts, prob: Problem, bounds: Bounds, *, max_steps: int = 100,
     best = jnp.argsort(screened.errors)[:keep]
     final = _levenberg_marquardt(screened.free[best], prob, bounds, max_steps)
     return final._replace(steps=final.steps + screened.steps[best])
+
+
+@partial(jax.jit, static_argnames=("starts", "max_steps", "screen_steps", "keep"))
+def polish_population(population, prob: Problem, bounds: Bounds, *, starts: int = 16,
+                      separation: float = 0.1, max_steps: int = 100, screen_steps: int = 40,
+                      keep: int = 3) -> PolishResult:
+    """`polish` from ``starts`` distinct good members of a sorted unit-cube population."""
+    chosen = distinct_members(population, starts, separation)
+    u0 = to_free(from_unit(population[chosen], bounds), bounds)
+    return polish(u0, prob, bounds, max_steps=max_steps, screen_steps=screen_steps, keep=keep)
 
 
 def distinct_members(z, count: int, separation: float = 0.02) -> jax.Array:
