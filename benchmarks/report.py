@@ -49,7 +49,7 @@ def write_section(name: str, body: str) -> None:
                f"<!-- end {name} -->")
     text = BENCHMARKS.read_text() if BENCHMARKS.exists() else PREAMBLE
     pattern = re.compile(rf"<!-- begin {re.escape(name)} -->.*?<!-- end {re.escape(name)} -->",
-                         re.S)
+                         re.DOTALL)
     text = pattern.sub(lambda _: section, text) if pattern.search(text) else (
         text.rstrip() + "\n\n" + section + "\n")
     BENCHMARKS.write_text(text)
