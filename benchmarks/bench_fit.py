@@ -59,18 +59,21 @@ def median_time(run, repeats):
     return float(np.median(times))
 
 
+def population_row(data, dtype, repeats):
+    """A table row: time of one E evaluation for 512 members, and per point-evaluation."""
+    prob = problem(data, dtype=dtype)
+    bounds = jax.tree.map(lambda x: x.astype(dtype) if x.dtype.kind == "f" else x,
+                          default_bounds())
+    z = jax.random.uniform(jax.random.key(0), (512, 5), dtype=dtype)
+    run = jax.jit(population_errors)
+    seconds = median_time(lambda: run(z, prob, bounds), repeats)
+    return (f"| {jnp.dtype(dtype).name} | 512 x {len(data)} | {1e3 * seconds:.2f} | "
+            f"{1e9 * seconds / (512 * len(data)):.2f} |")
+
+
 def bench_population(repeats):
     data = white_paint_train()
-    rows = []
-    for dtype in (jnp.float64, jnp.float32):
-        prob = problem(data, dtype=dtype)
-        bounds = jax.tree.map(lambda x: x.astype(dtype) if x.dtype.kind == "f" else x,
-                              default_bounds())
-        z = jax.random.uniform(jax.random.key(0), (512, 5), dtype=dtype)
-        run = jax.jit(population_errors)
-        seconds = median_time(lambda: run(z, prob, bounds), repeats)
-        rows.append(f"| {jnp.dtype(dtype).name} | 512 x {len(data)} | {1e3 * seconds:.2f} | "
-                    f"{1e9 * seconds / (512 * len(data)):.2f} |")
+    rows = [population_row(data, dtype, repeats) for dtype in (jnp.float64, jnp.float32)]
     write_section("population", "## Population evaluation (E of Eq. 6 for every member)\n\n"
                   "Geometry terms precomputed once per data set (`brdfjax.geometry.Scene`); "
                   "each point-evaluation is the parameter-dependent part of Eq. (5) plus its "

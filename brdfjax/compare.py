@@ -65,7 +65,7 @@ def scipy_de_ls(data, seed: int = 0, generous: bool = False, bounds=None):
 
     bounds = default_bounds() if bounds is None else bounds
     objective, _, residual = _unit_objectives(data, bounds)
-    settings = dict(popsize=40, maxiter=3000, tol=1e-10) if generous else {}
+    settings = {"popsize": 40, "maxiter": 3000, "tol": 1e-10} if generous else {}
     de = differential_evolution(objective, [(0.0, 1.0)] * 5, seed=seed, polish=False,
                                 **settings)
     ls = least_squares(residual, de.x, bounds=(0.0, 1.0), xtol=1e-12, ftol=1e-12, gtol=1e-12)
