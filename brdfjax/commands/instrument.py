@@ -1,0 +1,147 @@
+"""Commands that drive a goniometer: ``measure`` and ``instrument simulate``."""
+
+from __future__ import annotations
+
+import sys
+
+from brdfjax.commands import angles, parameters
+
+PLAN_OPTIONS = ("theta_r_step", "theta_r_max", "azimuth", "average", "integration_ms",
+                "beam_margin")
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "measure", help="measure BRDF on the instrument and write a file that fit reads",
+        description="Run a measurement plan on the goniometer at --port: each geometry is "
+                    "read on the sample and on the PTFE reference plate and converted by "
+                    "Eq. (7)-(8). Every reading goes to a journal first; running the same "
+                    "command again resumes an interrupted measurement.")
+    p.add_argument("--port", required=True, metavar="DEVICE",
+                   help="the instrument's serial device (the simulator prints its path)")
+    what = p.add_mutually_exclusive_group(required=True)
+    what.add_argument("--plan", metavar="PLAN", help="a TOML measurement plan")
+    what.add_argument("--incidence", type=angles, metavar="DEG",
+                      help="incidence angles for an in-plane scan, e.g. 10,30,50")
+    p.add_argument("--out", required=True, metavar="FILE", help="the measurement file (.csv)")
+    p.add_argument("--journal", metavar="FILE",
+                   help="the journal (default: FILE with the suffix .journal.jsonl)")
+    p.add_argument("--reference-reflectance", type=float, default=0.99, metavar="RHO",
+                   help="hemispherical reflectance of the PTFE reference plate at the "
+                        "wavelength (default 0.99)")
+    p.add_argument("--sample", default="sample", help="the sample's name, kept in the file")
+    p.add_argument("--baud", type=int, default=115200, help="line speed (default 115200)")
+    p.add_argument("--timeout", type=float, default=1.0, metavar="SECONDS",
+                   help="wait for a reply before resending (default 1)")
+    p.add_argument("--retries", type=int, default=5, help="resends per command (default 5)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    scan = p.add_argument_group("in-plane scan (with --incidence; a plan file has its own)")
+    scan.add_argument("--theta-r-step", type=float, metavar="DEG",
+                      help="reflection zenith step (default 1)")
+    scan.add_argument("--theta-r-max", type=float, metavar="DEG",
+                      help="sweep the signed reflection zenith from -MAX to MAX (default 85)")
+    scan.add_argument("--azimuth", type=angles, metavar="DEG",
+                      help="detector-arm azimuths, motor A (default 0: in plane)")
+    scan.add_argument("--average", type=int, help="integrations per reading (default 5)")
+    scan.add_argument("--integration-ms", type=float, help="per integration (default 20)")
+    scan.add_argument("--beam-margin", type=float, metavar="DEG",
+                      help="skip geometries with the detector this close to the source "
+                           "(default 5)")
+    p.set_defaults(run=run_measure)
+
+    p = subparsers.add_parser("instrument", help="instrument tools (the simulator)")
+    tools = p.add_subparsers(dest="tool", required=True, metavar="TOOL")
+    p = tools.add_parser(
+        "simulate", help="a simulated goniometer on a pseudo-terminal",
+        description="Serve the instrument protocol on a new pseudo-terminal, with detector "
+                    "voltages from a BRDF and a PTFE reference plate. Prints the device path "
+                    "as its first line of output, then serves until killed.")
+    sample = p.add_mutually_exclusive_group(required=True)
+    sample.add_argument("--params", type=parameters,
+                        help="kb,kr,a,b,kd (or a paper sample name) of the model sample")
+    sample.add_argument("--data", metavar="FILE",
+                        help="interpolate this in-plane measurement file instead")
+    p.add_argument("--reference-reflectance", type=float, default=0.99, metavar="RHO",
+                   help="the simulated PTFE plate's reflectance (default 0.99)")
+    p.add_argument("--gain", type=float, default=3.0,
+                   help="volts per unit of projected BRDF (default 3)")
+    p.add_argument("--noise", type=float, default=0.01,
+                   help="relative noise of a 10 ms integration (default 0.01)")
+    p.add_argument("--seed", type=int, default=0, help="seeds the noise and the faults")
+    p.add_argument("--baud", type=int, default=115200, help="line speed (default 115200)")
+    p.add_argument("--motor-speed", type=float, default=20.0, metavar="DEG_PER_S",
+                   help="motor speed (default 20)")
+    p.add_argument("--changer-seconds", type=float, default=1.0,
+                   help="time to swap sample and reference (default 1)")
+    p.add_argument("--wavelength-nm", type=float, default=1060.0,
+                   help="reported by IDN? (default 1060, the paper's)")
+    faults = p.add_argument_group("fault injection (for tests)")
+    faults.add_argument("--drop-rate", type=float, default=0.0,
+                        help="chance that a line loses one byte")
+    faults.add_argument("--corrupt-rate", type=float, default=0.0,
+                        help="chance that a line has one byte replaced")
+    faults.add_argument("--stall-rate", type=float, default=0.0,
+                        help="chance that a reply line is delayed by --stall-seconds")
+    faults.add_argument("--stall-seconds", type=float, default=1.0)
+    faults.add_argument("--disconnect-after", type=int, metavar="N",
+                        help="answer N commands, then hang up")
+    p.set_defaults(run=run_simulate)
+
+
+def scan_plan(args):
+    """The `~brdfjax.instrument.plan.Plan` of ``--plan`` or of the in-plane scan options."""
+    from brdfjax.instrument.plan import Plan, load_plan
+
+    given = [f"--{name.replace('_', '-')}" for name in PLAN_OPTIONS
+             if getattr(args, name) is not None]
+    if args.plan:
+        if given:
+            raise ValueError(f"not with --plan: put {', '.join(given)} in the plan file")
+        return load_plan(args.plan)
+    maximum = 85.0 if args.theta_r_max is None else args.theta_r_max
+    options = {"theta_r": (-maximum, maximum, args.theta_r_step or 1.0),
+               "azimuth": args.azimuth, "average": args.average,
+               "integration_ms": args.integration_ms, "beam_margin": args.beam_margin}
+    return Plan(incidence=args.incidence,
+                **{k: v for k, v in options.items() if v is not None})
+
+
+def run_measure(args) -> None:
+    from brdfjax.instrument.acquire import measure
+
+    plan = scan_plan(args)
+    print(f"plan: {len(plan.points)} geometries x (sample + reference); {plan.blocked} "
+          "skipped where the detector would block the source", file=sys.stderr)
+    result = measure(args.port, plan, args.out, journal=args.journal,
+                     reference_reflectance=args.reference_reflectance, baud=args.baud,
+                     timeout=args.timeout, retries=args.retries,
+                     metadata={"sample": args.sample}, progress=not args.quiet)
+    print(f"wrote {len(result.data)} points to {args.out} ({result.read_now} readings now, "
+          f"{result.resumed} from the journal {result.journal}; {result.resends} commands "
+          "resent)")
+
+
+def run_simulate(args) -> None:
+    from brdfjax.instrument.simulator import DataSample, Device, Faults, ModelSample, Server
+
+    if args.params is not None:
+        from brdfjax.cli import enable_compilation_cache
+
+        enable_compilation_cache()
+        sample = ModelSample(args.params)
+    else:
+        from brdfjax.formats import load
+
+        sample = DataSample(load(args.data))
+    device = Device(sample, reference_reflectance=args.reference_reflectance, gain=args.gain,
+                    noise=args.noise, seed=args.seed, motor_speed=args.motor_speed,
+                    changer_seconds=args.changer_seconds, baud=args.baud,
+                    wavelength_nm=args.wavelength_nm)
+    faults = Faults(drop_rate=args.drop_rate, corrupt_rate=args.corrupt_rate,
+                    stall_rate=args.stall_rate, stall_seconds=args.stall_seconds,
+                    disconnect_after=args.disconnect_after)
+    server = Server(device, faults, seed=args.seed)
+    print(server.path, flush=True)
+    print(f"simulator: serving on {server.path} at {args.baud} baud; stop with Ctrl-C",
+          file=sys.stderr, flush=True)
+    server.serve_forever()

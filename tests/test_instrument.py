@@ -1,0 +1,313 @@
+"""The instrument: protocol framing, plans, Eq. (7)-(8), the journal, and, through real
+pseudo-terminals with the simulator in its own process, measure -> fit, faults, resume and
+bad configuration."""
+
+import json
+import math
+import select
+import subprocess
+import sys
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+import serial
+
+from brdfjax.cli import build_parser, main
+from brdfjax.commands.instrument import scan_plan
+from brdfjax.formats import load
+from brdfjax.instrument import protocol
+from brdfjax.instrument.acquire import Journal, measure, to_measurements
+from brdfjax.instrument.driver import DisconnectedError, Instrument, RefusedError
+from brdfjax.instrument.plan import Plan, load_plan
+from brdfjax.instrument.simulator import DataSample, NoData
+from brdfjax.measurements import DataError, Measurements
+from brdfjax.model import PAPER_SAMPLES, projected_brdf
+
+TRUTH = PAPER_SAMPLES["khaki_paint"]
+SEED = 1
+# Motors fast and the changer instant, so a plan takes seconds; 1 ms integrations at 0.3 %
+# relative noise per 10 ms are ~1 % per integration, ~0.4 % per reading of 5.
+SIMULATOR = ["--params", ",".join(map(str, TRUTH)), "--seed", str(SEED), "--noise", "0.003",
+             "--motor-speed", "10000", "--changer-seconds", "0"]
+PLAN = Plan(incidence=(10, 30, 50), theta_r=(-85, 85, 5), average=5, integration_ms=1)
+SCAN = ["--theta-r-step", "5", "--average", "5", "--integration-ms", "1", "--quiet"]
+PLAN_OPTIONS = ["--incidence", "10,30,50", *SCAN]  # PLAN, as options of brdfjax measure
+
+
+# ---------------------------------------------------------------- protocol, plan, Eq. (7)-(8)
+
+def test_frame_round_trip_and_crc():
+    assert protocol.checksum(b"123456789") == "29B1"  # the CRC-16/CCITT-FALSE check value
+    line = protocol.encode(42, "MOVE", "C", "-12.5")
+    assert line == b"42 MOVE C -12.5*" + protocol.checksum(b"42 MOVE C -12.5").encode() + b"\n"
+    assert protocol.decode(line) == protocol.Message(42, "MOVE", ("C", "-12.5"))
+    assert protocol.decode(protocol.encode(3, "ERR", "RANGE", "a*b")).args == ("RANGE", "a?b")
+
+
+def test_every_dropped_or_replaced_byte_is_caught():
+    line = protocol.encode(1234, "OK", "1.234567890e-01", "2.0e-03", "5")
+    for k in range(len(line)):
+        with pytest.raises(protocol.FrameError):
+            protocol.decode(line[:k] + line[k + 1:])
+        for replacement in b"0123456789ABCDEF *OKR\xff":
+            if replacement != line[k]:
+                with pytest.raises(protocol.FrameError):
+                    protocol.decode(line[:k] + bytes([replacement]) + line[k + 1:])
+
+
+def test_in_plane_plan_skips_the_beam_crossing():
+    plan = Plan(incidence=(10, 30), theta_r=(-85, 85, 5))
+    for incidence in (10, 30):
+        signed = [p.c for p in plan.points if p.b == incidence]
+        assert sorted(signed) == [c for c in range(-85, 90, 5) if c != -incidence]
+    assert plan.blocked == 2
+    first = plan.points[0]
+    assert first.angles == (10, 85, 0)  # negative C: the source side, phi_r = 0
+    assert plan.points[20].angles == (10, 20, 180)
+    # The sweeps alternate direction, so the detector does not travel back.
+    assert [p.c for p in plan.points[33:35]] == [85, 85]
+
+
+def test_plan_with_azimuths_measures_the_normal_once():
+    plan = Plan(incidence=(40,), theta_r=(-10, 10, 10), azimuth=(0, 90))
+    assert [p.angles for p in plan.points] == [
+        (40, 10, 0), (40, 0, 0), (40, 10, 180), (40, 10, 270), (40, 10, 90)]
+
+
+def test_plan_file_and_its_errors(tmp_path):
+    path = tmp_path / "plan.toml"
+    path.write_text("incidence = [10, 30]\ntheta_r = [-80, 80, 2]\naverage = 3\n")
+    assert load_plan(path) == Plan(incidence=(10, 30), theta_r=(-80, 80, 2), average=3)
+    path.write_text("incidence = [10]\ntheta_step = 2\n")
+    with pytest.raises(DataError, match="unknown plan key.*theta_step"):
+        load_plan(path)
+    path.write_text("incidence = [10]\ntheta_r = [80, -80, 2]\n")
+    with pytest.raises(DataError, match="start <= stop"):
+        load_plan(path)
+    with pytest.raises(ValueError, match=r"motor B \(source arm.*85 deg.*0 to 80"):
+        Plan(incidence=(30, 85)).check_limits({"A": (0, 180), "B": (0, 80), "C": (-87, 87)})
+
+
+def test_measure_options_make_the_plan(tmp_path):
+    path = tmp_path / "plan.toml"
+    path.write_text("incidence = [10, 30]\ntheta_r = [-80, 80, 2]\n")
+    parse = build_parser().parse_args
+    common = ["measure", "--port", "/dev/null", "--out", "x.csv"]
+    assert scan_plan(parse([*common, "--plan", str(path)])) == load_plan(path)
+    assert scan_plan(parse([*common, "--incidence", "10,30", "--theta-r-step", "5",
+                            "--theta-r-max", "60"])) == Plan((10, 30), (-60, 60, 5))
+    with pytest.raises(ValueError, match="put --average in the plan file"):
+        scan_plan(parse([*common, "--plan", str(path), "--average", "3"]))
+
+
+def test_reference_sample_method():
+    plan = Plan(incidence=(30,), theta_r=(20, 20, 1))
+    readings = {(0, "sample"): {"volts": 0.5, "std": 0.01, "count": 4},
+                (0, "reference"): {"volts": 0.25, "std": 0.005, "count": 4}}
+    data = to_measurements(plan, readings, 0.98, {})
+    f = 0.5 / 0.25 * 0.98 / math.pi  # Eq. (8)
+    assert data.brdf[0] == pytest.approx(f)
+    assert data.sigma[0] == pytest.approx(f * math.hypot(0.01 / 2 / 0.5, 0.005 / 2 / 0.25))
+    assert np.degrees([data.theta_i[0], data.theta_r[0], data.phi_r[0]]) == pytest.approx(
+        [30, 20, 180])
+
+
+def test_journal_drops_a_cut_short_line_and_refuses_another_plan(tmp_path):
+    plan, path = Plan(incidence=(30,), theta_r=(0, 10, 10)), tmp_path / "j.jsonl"
+    journal = Journal(path, plan)
+    journal.append({"kind": "reading", "point": 0, "target": "sample", "volts": 1.0,
+                    "std": 0.0, "count": 1})
+    journal.close()
+    with open(path, "a") as handle:
+        handle.write('{"kind": "reading", "point": 0, "targ')  # killed mid-write
+    journal = Journal(path, plan)
+    assert list(journal.readings) == [(0, "sample")]
+    journal.append({"kind": "reading", "point": 0, "target": "reference", "volts": 1.0,
+                    "std": 0.0, "count": 1})
+    journal.close()
+    assert [json.loads(line)["kind"] for line in path.read_text().splitlines()] == [
+        "plan", "reading", "reading"]
+    with pytest.raises(DataError, match="another plan"):
+        Journal(path, Plan(incidence=(40,), theta_r=(0, 10, 10)))
+    journal = Journal(path, plan)
+    with pytest.raises(DataError, match="in use by another acquisition"):
+        Journal(path, plan)
+    journal.close()
+
+
+def test_data_sample_interpolates_between_measurements():
+    signed = np.array([-40.0, 0.0, 40.0])
+    data = Measurements.from_degrees(
+        np.repeat([20.0, 40.0], 3), np.tile(np.abs(signed), 2),
+        np.tile(np.where(signed > 0, 180.0, 0.0), 2), [1.0, 2.0, 3.0, 5.0, 6.0, 7.0])
+    sample = DataSample(data)
+    assert sample.brdf(20, 40, 180) == 3.0
+    assert sample.brdf(20, 20, 0) == 1.5  # halfway along the 20 deg curve
+    assert sample.brdf(30, 0, 0) == 4.0  # halfway between the incidences
+    with pytest.raises(NoData, match="outside the data"):
+        sample.brdf(50, 0, 0)
+    with pytest.raises(NoData, match="off the plane"):
+        sample.brdf(30, 10, 90)
+
+
+# ---------------------------------------------------------------- through a pseudo-terminal
+
+@pytest.fixture(scope="module")
+def simulator():
+    """Start simulators (``brdfjax instrument simulate``, each its own process); all are
+    killed when the module's tests are done."""
+    processes = []
+
+    def start(*options):
+        process = subprocess.Popen(
+            [sys.executable, "-m", "brdfjax.cli", "instrument", "simulate", *SIMULATOR,
+             *options], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        processes.append(process)
+        ready, _, _ = select.select([process.stdout], [], [], 60)
+        port = process.stdout.readline().strip() if ready else ""
+        if not port.startswith("/dev/"):
+            process.kill()
+            pytest.fail(f"the simulator printed no device path: {process.communicate()}")
+        return process, port
+
+    yield start
+    for process in processes:
+        process.kill()
+        process.wait()
+
+
+@pytest.fixture(scope="module")
+def clean_run(simulator, tmp_path_factory):
+    """The plan measured on a fault-free simulator: the reference for the other runs."""
+    _, port = simulator()
+    out = tmp_path_factory.mktemp("clean") / "clean.csv"
+    result = measure(port, PLAN, out, progress=False)
+    assert result.read_now == 2 * len(PLAN.points) and result.resends == 0
+    return out, load(out)
+
+
+def same_readings(a: Measurements, b: Measurements) -> bool:
+    return all(np.array_equal(getattr(a, k), getattr(b, k))
+               for k in ("theta_i", "theta_r", "phi_r", "brdf", "sigma"))
+
+
+def linearised_covariance(data: Measurements, params) -> np.ndarray:
+    """Covariance of the parameters that minimise Eq. (6), to first order in the noise.
+
+    Eq. (6) is unweighted least squares on ``f cos(theta_r)``, so with the Jacobian J of the
+    projected model and the data's sigma, ``cov = (J'J)^-1 J' S J (J'J)^-1`` with
+    ``S = diag(sigma cos(theta_r))^2`` (the sandwich form; not the chi^2 Hessian).
+    """
+    jacobian = np.asarray(jax.jacfwd(lambda p: projected_brdf(
+        p, data.theta_i, data.theta_r, data.phi_r))(jnp.asarray(params)))
+    noise = data.sigma * np.cos(data.theta_r)
+    bread = np.linalg.inv(jacobian.T @ jacobian)
+    return bread @ (jacobian.T @ (jacobian * noise[:, None] ** 2)) @ bread
+
+
+@pytest.mark.timeout(120)
+def test_measure_then_fit_recovers_the_simulated_parameters(clean_run, tmp_path):
+    path, data = clean_run
+    assert len(data) == len(PLAN.points) == 102
+    assert main(["fit", str(path), "--json", str(tmp_path / "fit.json")]) == 0
+    fitted = json.loads((tmp_path / "fit.json").read_text())["params"]
+    fitted = np.array([fitted[k] for k in TRUTH._fields])
+    sigma = np.sqrt(np.diag(linearised_covariance(data, fitted)))
+    z = (fitted - np.array(TRUTH)) / sigma
+    print("fitted", fitted, "sigma", sigma, "z", z)
+    assert np.all(np.abs(z) < 3), z
+    assert np.all(sigma < 0.15 * np.abs(np.array(TRUTH)))  # and the data pin them down
+
+
+@pytest.mark.timeout(120)
+def test_faults_on_the_line_do_not_change_the_data(simulator, clean_run, tmp_path):
+    _, port = simulator("--drop-rate", "0.05", "--corrupt-rate", "0.05", "--stall-rate",
+                        "0.01", "--stall-seconds", "0.4")
+    result = measure(port, PLAN, tmp_path / "faulty.csv", timeout=0.25, retries=8,
+                     progress=False)
+    print("resends", result.resends)
+    assert result.resends > 20  # the faults did happen...
+    assert same_readings(load(tmp_path / "faulty.csv"), clean_run[1])  # ...changed nothing
+
+
+@pytest.mark.timeout(120)
+def test_a_disconnected_run_resumes_from_its_journal(simulator, clean_run, tmp_path, capsys):
+    out, journal = tmp_path / "resumed.csv", tmp_path / "resumed.journal.jsonl"
+    first, port = simulator("--disconnect-after", "200")
+    assert main(["measure", "--port", port, "--out", str(out), *PLAN_OPTIONS]) == 1
+    assert "lost the instrument" in capsys.readouterr().err
+    first.wait(timeout=10)
+    taken = sum(json.loads(line)["kind"] == "reading" for line in journal.open())
+    assert 0 < taken < 2 * len(PLAN.points)
+    assert not out.exists()
+
+    _, port = simulator()
+    assert main(["measure", "--port", port, "--out", str(out), *PLAN_OPTIONS]) == 0
+    with Instrument(port) as instrument:
+        assert int(instrument.status()["reads"]) == 2 * len(PLAN.points) - taken
+    readings = [(r["point"], r["target"]) for r in map(json.loads, journal.open())
+                if r["kind"] == "reading"]
+    assert sorted(readings) == sorted((p.index, t) for p in PLAN.points
+                                      for t in ("sample", "reference"))
+    assert same_readings(load(out), clean_run[1])
+
+
+@pytest.mark.timeout(60)
+def test_bad_configuration_fails_before_any_motor_moves(simulator, tmp_path, capsys):
+    out = str(tmp_path / "never.csv")
+    assert main(["measure", "--port", "/dev/no-such-port", "--out", out, *PLAN_OPTIONS]) == 1
+    assert "cannot open the instrument's port /dev/no-such-port" in capsys.readouterr().err
+
+    _, port = simulator()
+    assert main(["measure", "--port", port, "--baud", "9600", "--timeout", "0.3",
+                 "--out", out, *PLAN_OPTIONS]) == 1
+    message = capsys.readouterr().err
+    assert "9600 baud" in message and "wrong baud rate" in message
+
+    assert main(["measure", "--port", port, "--out", out, "--journal",
+                 str(tmp_path / "j2.jsonl"), "--incidence", "30,85", *SCAN]) == 1
+    assert "motor B (source arm (incidence)) at 85 deg" in capsys.readouterr().err
+
+    with Instrument(port) as instrument:
+        status = instrument.status()
+        assert (status["moves"], status["reads"], status["homed"]) == ("0", "0", "0")
+        with pytest.raises(RefusedError, match="NOTHOMED"):
+            instrument.move("C", 10)
+        instrument.home()
+        with pytest.raises(RefusedError, match="RANGE") as refused:
+            instrument.move("B", 85)
+        assert refused.value.code == "RANGE"
+
+
+@pytest.mark.timeout(60)
+def test_a_repeated_command_runs_once_and_a_killed_simulator_is_reported(simulator):
+    process, port = simulator("--motor-speed", "100")
+    with serial.Serial(port, 115200, timeout=2) as line:
+
+        def send(seq, word, *args):
+            line.write(protocol.encode(seq, word, *args))
+
+        def reply():
+            return protocol.decode(line.readline())
+
+        send(1, "HOME")
+        assert reply() == protocol.Message(1, "OK")
+        send(2, "MOVE", "C", "20")  # 0.2 s of travel
+        send(2, "MOVE", "C", "20")  # a retry while it runs
+        assert [reply().word, reply().word, reply()] == [
+            "BUSY", "BUSY", protocol.Message(2, "OK", ("C", "20.00"))]
+        send(2, "MOVE", "C", "20")  # a retry after it finished: the same reply again
+        assert reply() == protocol.Message(2, "OK", ("C", "20.00"))
+        line.write(b"3 STATUS?*0000\n")  # a damaged line gets a NAK
+        assert reply() == protocol.Message(0, "ERR", ("CHECKSUM", "checksum", "'0000'", "does",
+                                                      "not", "match", "the", "line"))
+        send(3, "STATUS?")
+        assert "moves=2" in reply().args  # HOME and one MOVE
+    with Instrument(port, timeout=0.5) as instrument:
+        assert instrument.position("C") == 20
+        process.kill()
+        process.wait()
+        with pytest.raises(DisconnectedError, match="lost the instrument"):
+            instrument.position("C")
