@@ -43,8 +43,8 @@ class EvolveResult(NamedTuple):
     """The final population and how the run went.
 
     Attributes:
-        population: unit-cube coordinates, (population_size, 5), best first.
-        errors: E of each member, (population_size,), ascending.
+        population: unit-cube coordinates, (population_size, 5) (see `evolve` for order).
+        errors: E of each member, (population_size,).
         history: best E after each generation, (max_generations,), NaN after the stop.
         generations: generations run.
     """
@@ -61,24 +61,56 @@ def population_errors(z, prob: Problem, bounds: Bounds) -> jax.Array:
     return jnp.where(jnp.isnan(values), jnp.inf, values)
 
 
-@partial(jax.jit, static_argnames=("population_size", "max_generations", "elite_count",
-                                   "tournament_size", "patience"))
+@partial(jax.jit, static_argnames=("population_size", "islands", "max_generations",
+                                   "elite_count", "tournament_size", "patience", "precision"))
 def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = None, *,
-           population_size: int = 128, max_generations: int = 60, elite_count: int = 4,
-           tournament_size: int = 3, patience: int = 15) -> EvolveResult:
-    """Run the genetic algorithm on one problem.
+           population_size: int = 256, islands: int = 8, max_generations: int = 60,
+           elite_count: int = 4, tournament_size: int = 3, patience: int = 15,
+           precision: str = "float32") -> EvolveResult:
+    """Run the genetic algorithm on one problem, as ``islands`` independent populations.
+
+    Real data have several basins (FIELD-NOTES.md; the RT-300S "singularity" runs): one
+    population converges into whichever it finds first, independent islands into several,
+    and `brdfjax.polish.polish_population` polishes the best of each. The search runs in
+    ``precision`` (float32 evaluates a population about twice as fast; it only has to find
+    the basin, Levenberg-Marquardt polishes in the problem's float64).
 
     Args:
         key: a JAX PRNG key; the same key gives the same run.
         prob: the measurement set (`brdfjax.objective.problem`).
         bounds: the search box.
         config: the rates (`EvolveConfig` defaults if None).
-        population_size, max_generations, elite_count, tournament_size, patience: sizes.
+        population_size: members in all islands together (a multiple of ``islands``).
+        islands, max_generations, elite_count (per island), tournament_size, patience: sizes.
+        precision: dtype name of the search arithmetic.
 
     Returns:
-        An `EvolveResult`, population sorted best first.
+        An `EvolveResult` whose population is in island blocks of
+        ``population_size // islands`` rows, each block sorted best first, returned in the
+        problem's dtype.
     """
+    if population_size % islands:
+        raise ValueError(f"population_size {population_size} is not a multiple of "
+                         f"islands {islands}")
     config = EvolveConfig() if config is None else config
+    dtype = jnp.dtype(precision)
+    low_prob, low_bounds = jax.tree.map(
+        lambda x: x.astype(dtype) if jnp.issubdtype(x.dtype, jnp.floating) else x,
+        (prob, bounds))
+    runs = jax.vmap(lambda k: _island(k, low_prob, low_bounds, config,
+                                      population_size // islands, max_generations,
+                                      elite_count, tournament_size, patience))(
+        jax.random.split(key, islands))
+    out = prob.target.dtype
+    return EvolveResult(population=runs.population.reshape(-1, 5).astype(out),
+                        errors=runs.errors.reshape(-1).astype(out),
+                        history=jnp.nanmin(runs.history, axis=0).astype(out),
+                        generations=runs.generations.max())
+
+
+def _island(key, prob, bounds, config, population_size, max_generations, elite_count,
+            tournament_size, patience) -> EvolveResult:
+    """One population evolved to the stop; sorted best first."""
     init_key, loop_key = jax.random.split(key)
     z = jax.random.uniform(init_key, (population_size, 5), dtype=prob.target.dtype)
     errors = population_errors(z, prob, bounds)

@@ -17,12 +17,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from brdfjax.bounds import Bounds, default_bounds, from_unit, to_free, to_unit
-from brdfjax.evolve import EvolveConfig, evolve
+from brdfjax.evolve import EvolveConfig, EvolveResult, evolve
 from brdfjax.geometry import PAPER_CONSTANTS, ShadowingConstants
 from brdfjax.measurements import DataError, Measurements
 from brdfjax.model import PARAMETER_NAMES, Params, evaluate_projected
 from brdfjax.objective import prepare, problem, relative_error, targets
-from brdfjax.polish import polish, polish_population
+from brdfjax.polish import PolishResult, polish, polish_population
 
 METHODS = ("hybrid", "ga", "lm")
 
@@ -46,6 +46,7 @@ class FitResult:
         timings: wall seconds per stage (``evolve``, ``polish``, ``total``).
         history: the genetic search's best E after each generation.
         method: the method used; train_incidences, validation_incidences: in degrees.
+        message: why the status, where there is more to say (a batch sample's data error).
     """
 
     params: Params
@@ -66,6 +67,7 @@ class FitResult:
     validation_incidences: list
     bounds: Bounds = field(repr=False)
     constants: ShadowingConstants = field(repr=False, default=PAPER_CONSTANTS)
+    message: str = ""
 
     @property
     def vector(self) -> np.ndarray:
@@ -87,6 +89,7 @@ class FitResult:
             "evaluations": self.evaluations,
             "lm_steps": [int(s) for s in self.lm_steps],
             "timings": self.timings,
+            "message": self.message,
         }
 
 
@@ -119,8 +122,8 @@ def _incidence_mask(data, degrees):
 
 def fit(data: Measurements, method: str = "hybrid", *, seed: int = 0,
         validate_incidences=None, bounds: Bounds | None = None, start=None,
-        starts: int = 16, population_size: int = 128, max_generations: int = 60,
-        max_steps: int = 100, config: EvolveConfig | None = None,
+        starts: int = 16, population_size: int = 256, max_generations: int = 60,
+        max_steps: int = 1000, config: EvolveConfig | None = None,
         constants: ShadowingConstants = PAPER_CONSTANTS) -> FitResult:
     """Fit the five-parameter model to measurements by minimising E of Eq. (6).
 
@@ -155,12 +158,10 @@ def fit(data: Measurements, method: str = "hybrid", *, seed: int = 0,
                           max_generations=max_generations)
         searched.errors.block_until_ready()
         timings["evolve"] = time.perf_counter() - tic
-        generations = int(searched.generations)
-        history = np.asarray(searched.history)[:generations]
-        evaluations += population_size * (generations + 1)
+        history, evaluations = search_summary(searched, population_size)
 
     if method == "ga":
-        best = from_unit(searched.population[0], bounds)
+        best = from_unit(searched.population[jnp.argmin(searched.errors)], bounds)
         status, steps, success = "search_only", np.zeros(0, int), np.zeros(0, bool)
     else:
         tic = time.perf_counter()
@@ -172,16 +173,45 @@ def fit(data: Measurements, method: str = "hybrid", *, seed: int = 0,
                               bounds, max_steps=max_steps)
         polished.errors.block_until_ready()
         timings["polish"] = time.perf_counter() - tic
+        best, status, lm_evaluations = polish_summary(polished)
         steps, success = np.asarray(polished.steps), np.asarray(polished.success)
-        evaluations += int(np.sum(steps + 1)) * 6  # a residual and a 5-column Jacobian
-        pick = int(np.argmin(np.asarray(polished.errors)))
-        best = polished.params[pick]
-        finite = bool(np.isfinite(np.asarray(polished.errors)[pick]))
-        status = "failed" if not finite else "converged" if success[pick] else "max_steps"
+        evaluations += lm_evaluations
     timings["total"] = time.perf_counter() - begin
     return _result(data, train, held, np.asarray(best, dtype=float), bounds, constants,
                    method=method, status=status, evaluations=evaluations, lm_steps=steps,
                    lm_success=success, timings=timings, history=history)
+
+
+def search_summary(searched: EvolveResult, population_size: int) -> tuple[np.ndarray, int]:
+    """The genetic search's best-E history and its count of model evaluations.
+
+    Args:
+        searched: one run of `brdfjax.evolve.evolve` (host or device arrays).
+        population_size: its population size.
+
+    Returns:
+        The history up to the last generation run, and the evaluations it took.
+    """
+    generations = int(searched.generations)
+    return np.asarray(searched.history)[:generations], population_size * (generations + 1)
+
+
+def polish_summary(polished: PolishResult) -> tuple[np.ndarray, str, int]:
+    """The best polished start, the fit's status, and LM's count of model evaluations.
+
+    Args:
+        polished: the surviving starts of one `brdfjax.polish.polish` (host or device).
+
+    Returns:
+        The parameters (5,) of the start with the lowest E; ``converged``, ``max_steps``
+        or ``failed`` (no start reached a finite E); and the evaluations taken, a
+        residual and a 5-column Jacobian per step.
+    """
+    errors, steps = np.asarray(polished.errors), np.asarray(polished.steps)
+    pick = int(np.argmin(errors))
+    status = ("failed" if not np.isfinite(errors[pick]) else
+              "converged" if polished.success[pick] else "max_steps")
+    return np.asarray(polished.params[pick], dtype=float), status, int(np.sum(steps + 1)) * 6
 
 
 def _lm_starts(start, count, key, bounds, dtype):

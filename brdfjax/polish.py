@@ -68,7 +68,7 @@ def _levenberg_marquardt(starts, prob, bounds, max_steps):
 
 
 @partial(jax.jit, static_argnames=("max_steps", "screen_steps", "keep"))
-def polish(starts, prob: Problem, bounds: Bounds, *, max_steps: int = 100,
+def polish(starts, prob: Problem, bounds: Bounds, *, max_steps: int = 1000,
            screen_steps: int = 40, keep: int = 3) -> PolishResult:
     """Levenberg-Marquardt from many starts, screened, then run to convergence.
 
@@ -93,13 +93,21 @@ def polish(starts, prob: Problem, bounds: Bounds, *, max_steps: int = 100,
     return final._replace(steps=final.steps + screened.steps[best])
 
 
-@partial(jax.jit, static_argnames=("starts", "max_steps", "screen_steps", "keep"))
+@partial(jax.jit, static_argnames=("starts", "islands", "max_steps", "screen_steps", "keep"))
 def polish_population(population, prob: Problem, bounds: Bounds, *, starts: int = 16,
-                      separation: float = 0.1, max_steps: int = 100, screen_steps: int = 40,
-                      keep: int = 3) -> PolishResult:
-    """`polish` from ``starts`` distinct good members of a sorted unit-cube population."""
-    chosen = distinct_members(population, starts, separation)
-    u0 = to_free(from_unit(population[chosen], bounds), bounds)
+                      islands: int = 8, separation: float = 0.1, max_steps: int = 1000,
+                      screen_steps: int = 40, keep: int = 3) -> PolishResult:
+    """`polish` from distinct good members of each island of a `brdfjax.evolve` population.
+
+    Each of the ``islands`` blocks of ``population`` (sorted best first within the block)
+    gives ``starts // islands`` members that lie ``separation`` apart, so every basin the
+    islands found gets its own starts.
+    """
+    if starts % islands:
+        raise ValueError(f"starts {starts} is not a multiple of islands {islands}")
+    blocks = population.reshape(islands, -1, 5)
+    chosen = jax.vmap(lambda z: z[distinct_members(z, starts // islands, separation)])(blocks)
+    u0 = to_free(from_unit(chosen.reshape(-1, 5), bounds), bounds)
     return polish(u0, prob, bounds, max_steps=max_steps, screen_steps=screen_steps, keep=keep)
 
 
