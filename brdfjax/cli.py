@@ -17,6 +17,7 @@ from pathlib import Path
 COMMAND_MODULES = (
     "brdfjax.commands.fitting",
     "brdfjax.commands.data",
+    "brdfjax.commands.batch",
     "brdfjax.commands.instrument",
 )
 

@@ -1,0 +1,258 @@
+"""Fitting many measurement sets at once: the hybrid fit of `brdfjax.fit` over a batch.
+
+`fit_batch` runs, for every sample of a catalogue, exactly the fit that `brdfjax.fit.fit`
+runs with the ``hybrid`` method (genetic search, then screened Levenberg-Marquardt from
+distinct good members), but as one compiled call per chunk of samples:
+
+1. Each sample is checked (`brdfjax.measurements.validate`); one that fails becomes a
+   ``failed`` result carrying the reason and never reaches the compiled fit, so it cannot
+   spoil the others. Inside the fit every sample is its own lane with its own status.
+2. Samples with identical angle arrays share one precomputed `~brdfjax.geometry.Scene`.
+   Samples are ordered by geometry and cut into chunks of at most ``chunk_size``; a chunk
+   whose samples all share one geometry passes that scene once (``vmap`` with
+   ``in_axes=None``), any other chunk passes one scene per sample.
+3. Ragged data are padded, not looped over: point counts are padded to the next multiple of
+   `POINT_BUCKET` with zero-weight copies of the sample's first point (a valid geometry, so
+   every scene value stays finite, and zero weight, so E is unchanged), and a chunk's
+   sample count to a power of two (at most ``chunk_size``) and a multiple of the device
+   count, with copies of its first sample whose results are dropped. Compilations are so
+   bounded to one per (sample bucket, point bucket, shared geometry or not).
+4. Every sample is keyed by ``jax.random.key(seed)`` as `brdfjax.fit.fit` keys it, so a
+   batched fit follows the same search as the single fit of the same sample and ends at the
+   same E (to 1e-9 relative, tested; rounding in the longer padded sums is the only
+   difference).
+5. The genetic search is vmapped over samples. A vmapped LM costs as much as its slowest
+   lane (``FIELD-NOTES.md``), so the LM stage runs ``lm_batch`` samples at a time under
+   ``lax.map`` (each sample's starts still vmapped); ``lm_batch=None`` vmaps the whole
+   chunk. The default was the fastest on a 2-core CPU (``BENCHMARKS.md``, section batch).
+6. The sample axis is sharded over the local devices (``NamedSharding`` on a 1-D mesh with
+   an ``Auto`` axis, see ``FIELD-NOTES.md``); plain ``jit`` partitions the work. On a CPU,
+   ``XLA_FLAGS=--xla_force_host_platform_device_count=N`` (or ``jax_num_cpu_devices``)
+   makes N devices of N cores.
+"""
+
+from __future__ import annotations
+
+import inspect
+import time
+from collections.abc import Sequence
+from functools import partial
+
+import jax
+import numpy as np
+from jax.sharding import NamedSharding, PartitionSpec
+
+from brdfjax.bounds import Bounds, default_bounds
+from brdfjax.evolve import EvolveConfig, EvolveResult, evolve
+from brdfjax.fit import FitResult, _result, fit, polish_summary, search_summary
+from brdfjax.geometry import Scene, ShadowingConstants
+from brdfjax.measurements import DataError, Measurements, validate
+from brdfjax.model import Params
+from brdfjax.objective import Problem, prepare, problem
+from brdfjax.polish import PolishResult, polish_population
+
+# Point counts are padded up to a multiple of this: ragged catalogues compile once per
+# bucket, and at most 63 zero-weight points are carried (9 % extra work at 716 points).
+POINT_BUCKET = 64
+# The single fit's own defaults, read from its signature: a batched fit is the fit that
+# `brdfjax.fit.fit` gives each sample, whatever those defaults become.
+FIT_DEFAULTS = {name: inspect.signature(fit).parameters[name].default
+                for name in ("starts", "population_size", "max_generations", "max_steps",
+                             "config", "constants")}
+# The LM stage runs this many samples at once (lax.map batch_size); measured fastest on
+# a 2-core CPU among 1, 4, 16 and the whole chunk (BENCHMARKS.md, section batch).
+LM_BATCH = 1
+
+
+def fit_batch(samples: Sequence[Measurements], *, seed: int | Sequence[int] = 0,
+              bounds: Bounds | None = None, chunk_size: int = 256,
+              lm_batch: int | None = LM_BATCH, devices=None, **options) -> list[FitResult]:
+    """Fit the five-parameter model to every sample of a batch, one compiled call per chunk.
+
+    Each sample gets the fit that ``brdfjax.fit(sample, seed=seed)`` gives it (hybrid
+    method, no held-out incidences) and its own status: ``converged``, ``max_steps`` or
+    ``failed``, with `FitResult.message` saying why where there is more to say. Bad data
+    (NaN, no measurements, ...) make that sample ``failed`` with the `DataError` text; the
+    other samples are fitted as if it were not there.
+
+    Args:
+        samples: the measurement sets, any lengths and geometries.
+        seed: one seed for every sample, or one per sample.
+        bounds: the search box (`brdfjax.bounds.default_bounds` if None).
+        chunk_size: at most this many samples per compiled call; bounds the memory (about
+            ``chunk_size * points * starts * 5 * 8`` bytes of Jacobians).
+        lm_batch: samples whose LMs run together under ``vmap``; None for the whole chunk.
+        devices: the devices to shard the sample axis over (default: ``jax.devices()``).
+        **options: ``starts``, ``population_size``, ``max_generations``, ``max_steps``,
+            ``config``, ``constants``: as in `brdfjax.fit.fit`, with its defaults
+            (`FIT_DEFAULTS`).
+
+    Returns:
+        One `FitResult` per sample, in the order given. ``timings["total"]`` is the
+        sample's share of its chunk's wall time.
+    """
+    unknown = set(options) - set(FIT_DEFAULTS)
+    if unknown:
+        raise TypeError(f"fit_batch got unknown option(s) {sorted(unknown)}; "
+                        f"it takes {sorted(FIT_DEFAULTS)}")
+    options = {**FIT_DEFAULTS, **options}
+    constants, config = options.pop("constants"), options.pop("config")
+    seeds = np.broadcast_to(np.asarray(seed, dtype=np.int64), (len(samples),))
+    bounds = default_bounds() if bounds is None else bounds
+    mesh = jax.make_mesh((len(devices or jax.devices()),), ("samples",),
+                         axis_types=(jax.sharding.AxisType.Auto,), devices=devices)
+    settings = {**options, "lm_batch": lm_batch}
+    results: list[FitResult | None] = [None] * len(samples)
+    prepared = {}
+    scenes = {}
+    for index, data in enumerate(samples):
+        try:
+            validate(data, path=data.name)
+            geometry = _geometry_key(data)
+            if geometry not in scenes:
+                scenes[geometry] = prepare(data, constants)
+            prepared[index] = (geometry, problem(data, constants, geometry=scenes[geometry]))
+        except (DataError, ValueError) as error:
+            results[index] = _failed(data, str(error), bounds, constants)
+    # Stable sort by geometry, so samples sharing one land in the same chunks.
+    first_seen = {key: rank for rank, key in enumerate(dict.fromkeys(g for g, _ in
+                                                                        prepared.values()))}
+    order = sorted(prepared, key=lambda i: first_seen[prepared[i][0]])
+    for begin in range(0, len(order), chunk_size):
+        chunk = order[begin:begin + chunk_size]
+        tic = time.perf_counter()
+        searched, polished = _run_chunk([prepared[i][1] for i in chunk], seeds[chunk],
+                                        bounds, config, mesh, chunk_size, settings)
+        share = (time.perf_counter() - tic) / len(chunk)
+        for lane, index in enumerate(chunk):
+            results[index] = _sample_result(
+                samples[index], _lane(searched, lane), _lane(polished, lane),
+                options["population_size"], share, options["max_steps"], bounds, constants)
+    return results
+
+
+def _geometry_key(data: Measurements) -> bytes:
+    """A key equal for measurement sets with identical angle arrays."""
+    return b"".join(np.ascontiguousarray(x, dtype=float).tobytes() + b"|"
+                    for x in (data.theta_i, data.theta_r, data.phi_r))
+
+
+def _lane(batched, lane: int):
+    """One sample's slice of a batched result (a pytree with leading sample axis)."""
+    return jax.tree.map(lambda x: x[lane], batched)
+
+
+def _failed(data: Measurements, message: str, bounds: Bounds,
+            constants: ShadowingConstants) -> FitResult:
+    """The result of a sample that could not be fitted: NaN parameters and the reason."""
+    nothing = np.zeros(0)
+    return FitResult(params=Params(*[np.nan] * 5), error=np.nan, error_by_incidence={},
+                     validation_error=None, validation_by_incidence={}, residuals=nothing,
+                     status="failed", at_bounds=[], evaluations=0,
+                     lm_steps=nothing.astype(int), lm_success=nothing.astype(bool),
+                     timings={}, history=nothing, method="hybrid", train_incidences=[],
+                     validation_incidences=[], bounds=bounds, constants=constants,
+                     message=message)
+
+
+def _sample_result(data, searched, polished, population_size, seconds, max_steps, bounds,
+                   constants) -> FitResult:
+    """One sample's `FitResult` from its lane of the batched search and polish."""
+    history, evaluations = search_summary(searched, population_size)
+    best, status, lm_evaluations = polish_summary(polished)
+    message = {"max_steps": f"Levenberg-Marquardt stopped at its cap of {max_steps} steps "
+                            "before meeting its tolerance",
+               "failed": "no start reached a finite E"}.get(status, "")
+    empty = data.select(np.zeros(len(data), dtype=bool))
+    return _result(data, data, empty, best, bounds, constants, method="hybrid", status=status,
+                   evaluations=evaluations + lm_evaluations, lm_steps=polished.steps,
+                   lm_success=polished.success, timings={"total": seconds}, history=history,
+                   message=message)
+
+
+def _run_chunk(problems: list[Problem], seeds, bounds, config, mesh, chunk_size, settings):
+    """Pad one chunk, shard it over the mesh, fit it; host arrays cut to the real samples."""
+    count, devices = len(problems), mesh.devices.size
+    lanes = min(chunk_size, 1 << (count - 1).bit_length())
+    lanes = -(-max(lanes, count) // devices) * devices
+    points = POINT_BUCKET * -(-max(p.target.size for p in problems) // POINT_BUCKET)
+    chosen = list(range(count)) + [0] * (lanes - count)
+    shared = all(p.scene is problems[0].scene for p in problems)
+    targets = np.stack([_pad(problems[i].target, points, 0.0) for i in chosen])
+    weights = np.stack([_pad(problems[i].weight, points, 0.0) for i in chosen])
+    if shared:
+        scene = Scene(*(_pad(x, points) for x in problems[0].scene))
+    else:
+        scene = Scene(*(np.stack(fields) for fields in zip(
+            *([_pad(x, points) for x in problems[i].scene] for i in chosen))))
+    by_sample = NamedSharding(mesh, PartitionSpec("samples"))
+    everywhere = NamedSharding(mesh, PartitionSpec())
+    put = partial(jax.device_put, device=by_sample)
+    searched, polished = _fit_chunk(
+        put(np.asarray(seeds)[chosen]), jax.device_put(scene, by_sample if not shared
+                                                       else everywhere),
+        put(targets), put(weights), jax.device_put(bounds, everywhere),
+        jax.device_put(EvolveConfig() if config is None else config, everywhere),
+        groups=devices, **settings)
+    return jax.tree.map(lambda x: np.asarray(x)[:count], (searched, polished))
+
+
+def _pad(values, length: int, fill=None) -> np.ndarray:
+    """``values`` (N,) extended to ``length`` with ``fill``, or with its first value."""
+    values = np.asarray(values)
+    extra = np.full(length - values.size, values[0] if fill is None else fill,
+                    dtype=values.dtype)
+    return np.concatenate([values, extra])
+
+
+@partial(jax.jit, static_argnames=("population_size", "max_generations", "starts",
+                                   "max_steps", "lm_batch", "groups"))
+def _fit_chunk(seeds, scene: Scene, target, weight, bounds: Bounds, config: EvolveConfig, *,
+               population_size: int, max_generations: int, starts: int, max_steps: int,
+               lm_batch: int | None, groups: int) -> tuple[EvolveResult, PolishResult]:
+    """The hybrid fit of a padded chunk in one compiled call.
+
+    Args:
+        seeds: one integer seed per sample, (B,).
+        scene: one scene (P,) shared by every sample, or one per sample (B, P).
+        target, weight: the `Problem` arrays of each sample, (B, P); weight 0 on padding.
+        bounds, config: the search box and the genetic-search rates.
+        population_size, max_generations, starts, max_steps: as in `fit`.
+        lm_batch: samples polished together (``lax.map`` batch size), None for all.
+        groups: the number of devices; ``lax.map`` runs within each device's samples.
+
+    Returns:
+        The batched `EvolveResult` and `PolishResult`, leading axis B.
+    """
+    scene_axis = None if scene.cos_alpha.ndim == 1 else 0
+
+    def search(seed, scene, target, weight):
+        return evolve(jax.random.key(seed), Problem(scene, target, weight), bounds, config,
+                      population_size=population_size, max_generations=max_generations)
+
+    searched = jax.vmap(search, in_axes=(0, scene_axis, 0, 0))(seeds, scene, target, weight)
+
+    def refine(population, scene, target, weight):
+        return polish_population(population, Problem(scene, target, weight), bounds,
+                                 starts=starts, max_steps=max_steps)
+
+    if lm_batch is None:
+        polished = jax.vmap(refine, in_axes=(0, scene_axis, 0, 0))(
+            searched.population, scene, target, weight)
+    else:
+        # (B, ...) -> (groups, B / groups, ...): vmap over the devices' blocks, and a
+        # sequential map within each block, so the map never crosses the sharded axis.
+        def blocks(x):
+            return x.reshape((groups, -1) + x.shape[1:])
+
+        def within(lanes):
+            population, target, weight, own_scene = lanes
+            return jax.lax.map(lambda one: refine(one[0], scene if own_scene is None
+                                                  else one[3], one[1], one[2]),
+                               (population, target, weight, own_scene), batch_size=lm_batch)
+
+        per_sample_scene = None if scene_axis is None else jax.tree.map(blocks, scene)
+        polished = jax.vmap(within)((blocks(searched.population), blocks(target),
+                                     blocks(weight), per_sample_scene))
+        polished = jax.tree.map(lambda x: x.reshape((-1,) + x.shape[2:]), polished)
+    return searched, polished

@@ -1,0 +1,106 @@
+"""Batch fits beyond one machine: chunks of samples sent to a Dask distributed cluster.
+
+Dask (``pip install 'brdfjax[batch]'``) does the scheduling; brdfjax only cuts the
+catalogue into chunks and hands each to `fit_chunk` on a worker. A worker runs
+`brdfjax.batch.fit_batch` on its chunk (compiling once per chunk shape, then reusing the
+compiled fit for every later chunk) and sends back plain dictionaries, so a worker needs
+brdfjax installed but not the data files: the client reads them and ships the arrays.
+`fit_chunk` is also what the local path of ``brdfjax batch`` calls, so a cluster run and a
+local run compute the same thing.
+
+To use a real cluster, start a scheduler on one machine and workers on the others (each
+with brdfjax installed, one thread per worker process: JAX uses the cores itself)::
+
+    dask-scheduler                                  # prints tcp://HOST:8786
+    dask-worker tcp://HOST:8786 --nworkers 4 --nthreads 1
+    brdfjax batch data/*.xls --out results.csv --scheduler tcp://HOST:8786
+
+Dask is imported only here, and only when a cluster is used.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator
+
+
+def fit_chunk(samples: list, options: dict) -> list[dict]:
+    """Fit one chunk of samples wherever this runs, returning JSON-ready results.
+
+    Args:
+        samples: `brdfjax.measurements.Measurements`, one per sample.
+        options: keyword arguments of `brdfjax.batch.fit_batch`, except that bounds come
+            as ``ranges``, a ``{name: (low, high)}`` dict for `brdfjax.bounds.make_bounds`
+            (plain data travel to workers; JAX arrays need not). ``uncertainty``:
+            ``"laplace"`` adds `brdfjax.laplace.laplace_approximation` to each result.
+
+    Returns:
+        One `brdfjax.fit.FitResult.to_dict` per sample, in order; with ``uncertainty``, a
+        ``"std"`` entry of standard deviations by parameter name and the approximation's
+        ``"uncertainty_status"``.
+    """
+    from brdfjax.batch import fit_batch
+    from brdfjax.bounds import make_bounds
+
+    options = dict(options)
+    uncertainty = options.pop("uncertainty", None)
+    bounds = make_bounds(options.pop("ranges", {}))
+    results = fit_batch(samples, bounds=bounds, **options)
+    summaries = [result.to_dict() for result in results]
+    if uncertainty == "laplace":
+        _add_laplace(samples, results, summaries, bounds)
+    return summaries
+
+
+def _add_laplace(samples, results, summaries, bounds) -> None:
+    """Put the Laplace standard deviations and status into each fitted sample's summary."""
+    import warnings
+
+    from brdfjax.laplace import laplace_approximation
+    from brdfjax.model import PARAMETER_NAMES
+
+    for data, result, summary in zip(samples, results, summaries):
+        if result.status == "failed":
+            continue
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # its reasons are kept in the status
+            approximation = laplace_approximation(data, result, bounds=bounds)
+        summary["std"] = dict(zip(PARAMETER_NAMES, map(float, approximation.std)))
+        summary["uncertainty_status"] = approximation.status
+
+
+def fit_on_cluster(chunks: Iterable[list], scheduler: str,
+                   options: dict) -> Iterator[tuple[int, list[dict] | BaseException]]:
+    """Send every chunk to a Dask cluster; yield each chunk's results as soon as it is done.
+
+    Args:
+        chunks: lists of `~brdfjax.measurements.Measurements`; each becomes one task.
+        scheduler: the scheduler's address, e.g. ``tcp://10.0.0.5:8786``.
+        options: as for `fit_chunk`.
+
+    Yields:
+        ``(chunk number, results)`` in order of completion; ``results`` is the exception
+        instead when the chunk failed on the cluster (a worker died, ...).
+
+    Raises:
+        ImportError: dask.distributed is not installed.
+        OSError: the scheduler cannot be reached.
+    """
+    try:
+        from dask.distributed import Client, as_completed
+    except ImportError as missing:
+        raise ImportError("--scheduler needs Dask: pip install 'brdfjax[batch]'") from missing
+
+    from brdfjax.cli import enable_compilation_cache
+
+    with Client(scheduler, timeout="30s") as client:
+        # Workers keep compiled fits on disk, so a restarted worker skips XLA compilation.
+        client.run(enable_compilation_cache)
+        numbers = {}
+        for number, chunk in enumerate(chunks):
+            numbers[client.submit(fit_chunk, chunk, options, pure=False)] = number
+        for future in as_completed(numbers):
+            try:
+                yield numbers[future], future.result()
+            # Whatever a worker raised (or KilledWorker), the chunk, not the run, has failed.
+            except Exception as error:  # noqa: BLE001
+                yield numbers[future], error

@@ -1,0 +1,269 @@
+"""The ``batch`` command: refit a whole catalogue, resumably, here or on a Dask cluster.
+
+Results go to one CSV row per input file (``file, kb, kr, a, b, kd, error, status,
+message``; E as a fraction). After every chunk the whole CSV is rewritten through a
+temporary file and moved into place, so it always holds every finished sample and never a
+half-written row. Rerunning the same command skips the files already in it: an
+interrupted batch (Ctrl-C, a crash, a killed job) resumes where it stopped, and the final
+file is the same as an uninterrupted run's, rows in input order. Delete a row (or the
+file) to refit it.
+"""
+
+from __future__ import annotations
+
+import csv
+import glob
+import io
+import os
+import sys
+from pathlib import Path
+
+from brdfjax.commands import add_reader_options, reader_options
+
+SUFFIXES = (".csv", ".xls", ".bsdf")
+PARAMETERS = ("kb", "kr", "a", "b", "kd")  # brdfjax.model.PARAMETER_NAMES, without JAX
+COLUMNS = ("file", *PARAMETERS, "error", "status", "message")
+UNCERTAINTY_COLUMNS = (*(f"std_{name}" for name in PARAMETERS), "uncertainty_status")
+SEARCH_OPTIONS = {"population_size": "genetic-search population",
+                  "max_generations": "genetic-search generations",
+                  "starts": "Levenberg-Marquardt starts per sample",
+                  "max_steps": "Levenberg-Marquardt step cap per start"}
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "batch", help="fit many files at once; resumable; local or on a Dask cluster",
+        description="Fit every input with the hybrid fit (as `brdfjax fit`), one compiled "
+                    "fit per chunk of files, and write one CSV row per file. Rerun the "
+                    "same command to resume an interrupted batch.")
+    p.add_argument("inputs", nargs="+", metavar="INPUT",
+                   help="files, directories (every .csv/.xls/.bsdf inside except RT-300S "
+                        "blank_*.xls) or glob patterns such as 'runs/*.xls'")
+    p.add_argument("--out", required=True, metavar="CSV",
+                   help="results file; files already in it are not refitted")
+    p.add_argument("--json", metavar="DIR", help="also write each result as DIR/NAME.json")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="send chunks to this Dask scheduler (tcp://HOST:8786) "
+                        "instead of fitting here")
+    p.add_argument("--chunk-size", type=int, default=64,
+                   help="files per compiled fit and per write (default 64)")
+    p.add_argument("--uncertainty", choices=("laplace",),
+                   help="add Laplace standard deviations (std_kb, ...) to every row")
+    p.add_argument("--seed", type=int, default=0, help="the seed of every fit (default 0)")
+    p.add_argument("--bound", action="append", default=[], metavar="NAME=LO:HI",
+                   help="override a parameter's search range, e.g. b=-80:10")
+    for name, text in SEARCH_OPTIONS.items():
+        p.add_argument(f"--{name.replace('_', '-')}", type=int, metavar="N",
+                       help=f"{text} (default: as brdfjax fit)")
+    add_reader_options(p)
+    p.set_defaults(run=run_batch)
+
+
+def expand(inputs) -> list[str]:
+    """The files named by files, directories and glob patterns, in order, once each."""
+    files = []
+    for item in inputs:
+        if Path(item).is_dir():
+            found = sorted(str(p) for p in Path(item).iterdir() if _is_sample(p))
+        elif Path(item).is_file():
+            found = [item]
+        elif glob.has_magic(item):
+            found = sorted(p for p in glob.glob(item) if _is_sample(Path(p)))
+        else:
+            raise ValueError(f"{item}: no such file, directory or matching pattern")
+        if not found:
+            raise ValueError(f"{item}: no {'/'.join(SUFFIXES)} files there")
+        files += [os.path.normpath(p) for p in found]
+    return list(dict.fromkeys(files))
+
+
+def _is_sample(path: Path) -> bool:
+    """A measurement file, and not an RT-300S blank (which is subtracted, not fitted)."""
+    return (path.is_file() and path.suffix.lower() in SUFFIXES
+            and not (path.suffix.lower() == ".xls" and path.name.startswith("blank_")))
+
+
+def read_results(path, columns) -> dict:
+    """The rows of an earlier run by file, or nothing if ``path`` does not exist yet."""
+    if not Path(path).exists():
+        return {}
+    with open(path, newline="", encoding="utf-8") as handle:
+        reader = csv.DictReader(handle)
+        if tuple(reader.fieldnames or ()) != columns:
+            raise ValueError(f"{path}: exists but its columns are not {','.join(columns)}; "
+                             "give another --out (or the same options as the run that "
+                             "wrote it)")
+        return {row["file"]: row for row in reader}
+
+
+def write_results(path, rows: dict, order, columns) -> None:
+    """Rewrite the results CSV atomically: rows in input order, then any others."""
+    from brdfjax.formats import write_atomically
+
+    text = io.StringIO()
+    writer = csv.DictWriter(text, columns, lineterminator="\n")
+    writer.writeheader()
+    ranked = {file: rank for rank, file in enumerate(order)}
+    for file in sorted(rows, key=lambda f: ranked.get(f, len(ranked))):
+        writer.writerow(rows[file])
+    write_atomically(path, text.getvalue())
+
+
+def row(file: str, result: dict, columns) -> dict:
+    """A CSV row from a `brdfjax.fit.FitResult.to_dict` (numbers as exact reprs)."""
+    values = {"file": file, **{k: repr(float(v)) for k, v in result["params"].items()},
+              "error": repr(float(result["error"])), "status": result["status"],
+              "message": result["message"]}
+    if "uncertainty_status" in columns:
+        std = result.get("std", {})
+        values.update({f"std_{k}": repr(float(std.get(k, float("nan")))) for k in PARAMETERS})
+        values["uncertainty_status"] = result.get("uncertainty_status", "")
+    return values
+
+
+def run_batch(args) -> int:
+    from tqdm import tqdm
+
+    from brdfjax.commands.fitting import parse_bounds
+
+    if args.chunk_size < 1:
+        raise ValueError(f"--chunk-size {args.chunk_size}: give at least 1")
+    columns = COLUMNS + (UNCERTAINTY_COLUMNS if args.uncertainty else ())
+    files = expand(args.inputs)
+    names = [Path(f).stem for f in files]
+    if args.json and len(set(names)) < len(names):
+        clash = next(n for n in names if names.count(n) > 1)
+        raise ValueError(f"--json: two inputs are named {clash!r}; give them separate runs")
+    rows = read_results(args.out, columns)
+    pending = [f for f in files if f not in rows]
+    options = {"seed": args.seed, "ranges": parse_bounds(args.bound),
+               "chunk_size": args.chunk_size, "uncertainty": args.uncertainty,
+               **{k: getattr(args, k) for k in SEARCH_OPTIONS if getattr(args, k) is not None}}
+    if args.json:
+        Path(args.json).mkdir(parents=True, exist_ok=True)
+    if rows:
+        print(f"{args.out}: {len(files) - len(pending)} of {len(files)} inputs already done; "
+              f"fitting the other {len(pending)}", file=sys.stderr)
+
+    progress = tqdm(total=len(pending), unit="file", desc="brdfjax batch", file=sys.stderr)
+    unread = {}
+
+    def record(batch: dict) -> None:
+        """Save a chunk's results and the unreadable files met so far (JSON first, so a
+        listed row always has its JSON)."""
+        batch = {**unread, **batch}
+        unread.clear()
+        if args.json:
+            _write_json(args.json, batch)
+        rows.update({file: row(file, result, columns) for file, result in batch.items()})
+        write_results(args.out, rows, files, columns)
+        progress.update(len(batch))
+
+    chunks = _chunks(pending, args, unread)
+    lost = _fit_chunks(chunks, args.scheduler, options, record)
+    record({})  # the last unreadable files, if no chunk came after them
+    progress.close()
+    return _summary(rows, files, lost)
+
+
+def _chunks(pending, args, unread: dict):
+    """Read the pending files; yield ``(files, measurements)`` chunks of readable ones.
+
+    A file that cannot be read goes into ``unread`` as a failed result with the reason.
+    """
+    from brdfjax.formats import load
+    from brdfjax.measurements import DataError
+
+    chunk = []
+    for file in pending:
+        try:
+            chunk.append((file, load(file, **reader_options(args))))
+        except (DataError, ValueError, OSError) as error:
+            unread[file] = {"params": dict.fromkeys(PARAMETERS, float("nan")),
+                            "error": float("nan"), "status": "failed", "message": str(error)}
+        if len(chunk) == args.chunk_size:
+            yield chunk
+            chunk = []
+    if chunk:
+        yield chunk
+
+
+def _fit_chunks(chunks, scheduler, options, record) -> list:
+    """Fit every chunk here or on the cluster, recording each as it finishes.
+
+    Returns:
+        The errors of chunks the cluster could not fit (nothing is recorded for them, so
+        a rerun fits them again).
+    """
+    from brdfjax.cluster import fit_chunk, fit_on_cluster
+
+    if scheduler is None:
+        from brdfjax.cli import enable_compilation_cache
+
+        devices = _every_core()
+        enable_compilation_cache()
+        print(f"fitting on {len(devices)} {devices[0].platform} device(s)", file=sys.stderr)
+        for chunk in chunks:
+            files, samples = zip(*chunk)
+            record(dict(zip(files, fit_chunk(list(samples), options))))
+        return []
+    sent, lost = [], []
+
+    def remember(chunks):
+        for chunk in chunks:
+            sent.append([file for file, _ in chunk])
+            yield [data for _, data in chunk]
+
+    for number, results in fit_on_cluster(remember(chunks), scheduler, options):
+        if isinstance(results, BaseException):
+            lost.append(f"{len(sent[number])} files from {sent[number][0]}: {results}")
+        else:
+            record(dict(zip(sent[number], results)))
+    return lost
+
+
+def _every_core() -> list:
+    """The JAX devices to shard over: on a CPU, one device per core.
+
+    XLA alone keeps about one core busy on this work, while samples sharded over one
+    device per core keep every core busy (``BENCHMARKS.md``, section batch). A device
+    count given in ``XLA_FLAGS`` (``--xla_force_host_platform_device_count``) is kept, and
+    so are the devices of a JAX that has already started.
+    """
+    import jax
+
+    if "xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", ""):
+        try:
+            jax.config.update("jax_num_cpu_devices", os.cpu_count() or 1)
+        except RuntimeError:  # JAX already running in this process: keep its devices
+            pass
+    return jax.devices()
+
+
+def _write_json(directory, batch: dict) -> None:
+    import json
+
+    from brdfjax.formats import write_atomically
+
+    for file, result in batch.items():
+        write_atomically(Path(directory) / f"{Path(file).stem}.json",
+                         json.dumps({"file": file, **result}, indent=2) + "\n")
+
+
+def _summary(rows: dict, files, lost) -> int:
+    """Print what failed and why; 1 if anything failed, else 0."""
+    done = [f for f in files if f in rows]
+    failed = [(f, rows[f]["message"]) for f in done if rows[f]["status"] == "failed"]
+    capped = sum(rows[f]["status"] == "max_steps" for f in done)
+    print(f"{len(done) - len(failed)} of {len(files)} fitted"
+          + (f" ({capped} stopped at the LM step cap: see their message)" if capped else ""),
+          file=sys.stderr)
+    if failed:
+        print(f"{len(failed)} failed:", file=sys.stderr)
+        for file, message in failed:
+            print(f"  {message if message.startswith(file) else f'{file}: {message}'}",
+                  file=sys.stderr)
+    if lost:
+        raise ValueError(f"{len(lost)} chunk(s) failed on the cluster and were not recorded "
+                         f"(rerun to fit them): {'; '.join(lost)}")
+    return 1 if failed else 0

@@ -1,0 +1,228 @@
+"""Batch fits: equal to single fits; a bad sample fails alone; sharded, on Dask, resumable.
+
+Every batch here uses the small `SMALL` settings so that compiling (about 10 s a shape on
+two cores) dominates as little as possible. The command-line runs share one on-disk
+compilation cache (``BRDFJAX_CACHE``), so only the first run of each shape compiles.
+"""
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import DATA, REPO
+
+from brdfjax.batch import fit_batch
+from brdfjax.cluster import fit_chunk
+from brdfjax.commands.batch import expand
+from brdfjax.fit import fit
+from brdfjax.formats import load, save
+from brdfjax.measurements import Measurements
+from brdfjax.model import PAPER_SAMPLES
+from brdfjax.synthetic import paper_geometry, synthesize
+
+SMALL = {"population_size": 64, "max_generations": 15, "starts": 8, "max_steps": 40}
+CLI_SMALL = [f"--{k.replace('_', '-')}={v}" for k, v in SMALL.items()] + ["--chunk-size=2"]
+RAW = DATA / "real" / "uaz-loft-rt300s" / "raw"
+CATALOGUE_SIZE = 16  # good files; with chunks of 2, eight writes to interrupt between
+
+
+def synthetic(seed: int, incidences=(10, 45), points: int | None = None) -> Measurements:
+    """A khaki-paint-like sample with perturbed parameters on a 4-degree in-plane scan."""
+    theta_i, theta_r, phi_r = paper_geometry("khaki_paint")
+    keep = np.flatnonzero(np.isin(theta_i, incidences) & (theta_r % 4 == 0))[:points]
+    rng = np.random.default_rng(seed)
+    params = np.array(PAPER_SAMPLES["khaki_paint"]) * np.exp(0.1 * rng.standard_normal(5))
+    return synthesize(params, theta_i[keep], theta_r[keep], phi_r[keep], seed=seed,
+                      metadata={"sample": f"synthetic {seed}"})
+
+
+@pytest.fixture(scope="module")
+def mixed_batch():
+    """Real runs (one converges, one stops at the step cap), a NaN copy, a synthetic scan.
+
+    The synthetic scan has another geometry and the same point count (120) as the real
+    runs, so the single fits compile once; the batch pads and masks the other geometry.
+    """
+    converging = load(RAW / "NiTE_on_invar_v1o0B_20250916.xls")
+    capped = load(RAW / "ANOPLATE_AnoBlack_EC1_Alum6061_v1o0_20251115.xls")
+    brdf = converging.brdf.copy()
+    brdf[7] = np.nan
+    broken = Measurements(converging.theta_i, converging.theta_r, converging.phi_r, brdf,
+                          metadata={"sample": "broken"})
+    scan = synthetic(0, incidences=(10, 30, 60), points=120)
+    assert len(scan) == len(converging) == 120
+    samples = [converging, broken, capped, scan]
+    return samples, fit_batch(samples, **SMALL)
+
+
+def test_batched_fits_equal_single_fits_and_a_nan_sample_fails_alone(mixed_batch):
+    samples, results = mixed_batch
+    assert [r.status for r in results] == ["converged", "failed", "max_steps", "converged"]
+    broken = results[1]
+    assert "brdf is nan" in broken.message and broken.message.startswith("broken:")
+    assert np.all(np.isnan(broken.vector))
+    assert "step" in results[2].message
+    for data, batched in zip(samples, results):
+        if batched.status == "failed":
+            continue
+        single = fit(data, **SMALL)
+        assert batched.status == single.status
+        assert batched.error == pytest.approx(single.error, rel=1e-9)
+        np.testing.assert_allclose(batched.vector, single.vector, rtol=1e-6)
+        assert batched.error_by_incidence.keys() == single.error_by_incidence.keys()
+        assert len(batched.residuals) == len(data)  # no padding leaks into the result
+
+
+def test_laplace_uncertainty_is_added_to_fitted_samples_only(mixed_batch):
+    pytest.importorskip("brdfjax.laplace")
+    samples, results = mixed_batch
+    summaries = fit_chunk(samples, {**SMALL, "uncertainty": "laplace"})
+    assert [s["error"] for s in summaries if s["status"] != "failed"] == [
+        r.error for r in results if r.status != "failed"]
+    assert "std" not in summaries[1]
+    for summary in (summaries[0], summaries[3]):
+        assert summary["uncertainty_status"] in ("ok", "untrustworthy")
+        assert all(np.isfinite(v) and v > 0 for v in summary["std"].values())
+
+
+def test_an_empty_batch_and_an_empty_sample(mixed_batch):
+    assert fit_batch([]) == []
+    empty = mixed_batch[0][0].select(np.zeros(120, dtype=bool))
+    (result,) = fit_batch([empty], **SMALL)
+    assert result.status == "failed" and "no measurements" in result.message
+
+
+def test_inputs_expand_from_directories_and_globs_without_blanks(tmp_path):
+    files = expand([str(RAW), str(RAW / "NiTE_on_steel_*.xls")])
+    names = [Path(f).name for f in files]
+    assert len(names) == 8 and not any(n.startswith("blank_") for n in names)
+    assert names == sorted(names)  # the glob's files are already in, once
+    with pytest.raises(ValueError, match="no such file"):
+        expand([str(tmp_path / "missing.csv")])
+
+
+@pytest.fixture(scope="module")
+def catalogue(tmp_path_factory):
+    """A folder of synthetic CSV files and one unreadable (NaN) file."""
+    folder = tmp_path_factory.mktemp("catalogue")
+    for seed in range(CATALOGUE_SIZE):
+        save(synthetic(seed), folder / f"sample_{seed:02d}.csv")
+    (folder / "broken.csv").write_text("theta_i,theta_r,phi_r,brdf\n10,0,0,nan\n10,4,180,0.1\n")
+    return folder
+
+
+@pytest.fixture(scope="module")
+def environment(tmp_path_factory):
+    """Environment of the command-line runs: one CPU device, one shared compilation cache."""
+    cache = tmp_path_factory.mktemp("jax-cache")
+    return {**os.environ, "BRDFJAX_CACHE": str(cache), "PYTHONPATH": str(REPO),
+            "XLA_FLAGS": "--xla_force_host_platform_device_count=1"}
+
+
+def batch_command(catalogue, out, *extra):
+    return [sys.executable, "-m", "brdfjax.cli", "batch", str(catalogue), "--out", str(out),
+            *CLI_SMALL, *extra]
+
+
+@pytest.fixture(scope="module")
+def reference(catalogue, environment, tmp_path_factory):
+    """An uninterrupted local run: its CSV text, JSON folder and completed process."""
+    folder = tmp_path_factory.mktemp("reference")
+    out, json_dir = folder / "results.csv", folder / "json"
+    done = subprocess.run(batch_command(catalogue, out, "--json", str(json_dir)), check=False,
+                          env=environment, capture_output=True, text=True, timeout=300)
+    return out.read_text(), json_dir, done
+
+
+def rows(text: str) -> list[dict]:
+    return list(csv.DictReader(text.splitlines()))
+
+
+def test_cli_writes_one_row_per_file_and_summarises_failures(reference, catalogue):
+    text, json_dir, done = reference
+    assert done.returncode == 1, done.stderr  # one input failed
+    assert "1 failed:" in done.stderr and "brdf is nan" in done.stderr
+    assert "file/s" in done.stderr or "s/file" in done.stderr  # tqdm's rate
+    table = rows(text)
+    assert [r["file"] for r in table] == sorted(str(p) for p in catalogue.iterdir())
+    assert {r["status"] for r in table[1:]} <= {"converged", "max_steps"}
+    assert table[0]["status"] == "failed" and "brdf is nan" in table[0]["message"]
+    saved = json.loads((json_dir / "sample_03.json").read_text())
+    assert repr(saved["error"]) == table[4]["error"]
+
+
+def count_rows(path: Path) -> int:
+    try:
+        return len(rows(path.read_text()))
+    except FileNotFoundError:
+        return 0
+
+
+def interrupt(command, out, environment, sig) -> subprocess.Popen:
+    """Start a run and send ``sig`` as soon as it has written its first chunk."""
+    before = count_rows(out)
+    process = subprocess.Popen(command, env=environment, stdout=subprocess.DEVNULL,
+                               stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 240
+    while count_rows(out) == before and process.poll() is None:
+        assert time.monotonic() < deadline, "no chunk written in 240 s"
+        time.sleep(0.002)
+    process.send_signal(sig)
+    process.wait(timeout=60)
+    return process
+
+
+@pytest.mark.timeout(400)
+def test_interrupted_batch_resumes_without_refitting_or_duplicates(reference, catalogue,
+                                                                  environment, tmp_path):
+    out = tmp_path / "results.csv"
+    command = batch_command(catalogue, out)
+    total = CATALOGUE_SIZE + 1
+    stopped = interrupt(command, out, environment, signal.SIGINT)  # Ctrl-C
+    assert stopped.returncode == 130, stopped.stderr
+    after_interrupt = count_rows(out)
+    crashed = interrupt(command, out, environment, signal.SIGKILL)  # a crash
+    assert crashed.returncode == -signal.SIGKILL
+    after_crash = count_rows(out)
+    assert 0 < after_interrupt < after_crash < total, "a run ended before its signal"
+    finished = subprocess.run(command, check=False, env=environment, capture_output=True,
+                              text=True, timeout=300)
+    assert f"{after_crash} of {total} inputs already done" in finished.stderr
+    assert finished.returncode == 1  # the broken file, still reported
+    final = out.read_text()
+    assert final == reference[0]  # same rows, same numbers, same order: nothing duplicated
+
+
+@pytest.mark.timeout(300)
+def test_sharded_over_two_devices_gives_the_same_results(reference, catalogue, environment,
+                                                         tmp_path):
+    out = tmp_path / "results.csv"
+    env = {**environment, "XLA_FLAGS": "--xla_force_host_platform_device_count=2"}
+    done = subprocess.run(batch_command(catalogue, out), check=False, env=env,
+                          capture_output=True, text=True, timeout=280)
+    assert "fitting on 2 cpu device(s)" in done.stderr, done.stderr
+    assert out.read_text() == reference[0]
+
+
+@pytest.mark.timeout(300)
+def test_dask_cluster_gives_the_local_results(reference, catalogue, environment, tmp_path,
+                                              monkeypatch, capsys):
+    distributed = pytest.importorskip("distributed")
+    from brdfjax.cli import main
+
+    for name, value in environment.items():  # the workers inherit it when spawned
+        monkeypatch.setenv(name, value)
+    out = tmp_path / "results.csv"
+    with distributed.LocalCluster(n_workers=2, processes=True, threads_per_worker=1,
+                                  host="127.0.0.1", dashboard_address=None) as cluster:
+        code = main(batch_command(catalogue, out, "--scheduler",
+                                  cluster.scheduler_address)[3:])
+    assert code == 1 and "brdf is nan" in capsys.readouterr().err
+    assert out.read_text() == reference[0]
