@@ -3,7 +3,9 @@
 matplotlib (Agg backend) is imported here only, when a figure is asked for. Curves show
 the projected BRDF ``f_r cos(theta_r)`` against the signed reflection angle (positive on
 the specular side), as the paper's Fig. 5/6 do; the 3-D view shows the fitted model over
-the whole hemisphere, as its Fig. 9-15 do.
+the whole hemisphere, as its Fig. 9-15 do. For uncertainty: bands on the curves
+(`plot_fit`'s ``bands``, `plot_band_widths`), on the reflectance (`plot_reflectance_bands`),
+and the posterior's corner plot (`plot_corner`, with the ``corner`` package).
 """
 
 from __future__ import annotations
@@ -101,4 +103,122 @@ def plot_hemisphere(params, incidences_deg, path, title: str = "", resolution: i
     fig.suptitle(title or "fitted model over the hemisphere")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _corner_coordinates(result) -> tuple[np.ndarray, list]:
+    """A result's draws in the prior's coordinates (log10 for log-scale parameters), labelled."""
+    from brdfjax.model import PARAMETER_NAMES
+
+    log_scale = np.asarray(result.bounds.log_scale, dtype=bool)
+    samples = np.asarray(result.samples, dtype=float)
+    with np.errstate(divide="ignore"):
+        values = np.where(log_scale, np.log10(np.abs(samples)), samples)
+    values = values[np.all(np.isfinite(values), axis=1)]
+    labels = [f"log10 {n}" if log else n for n, log in zip(PARAMETER_NAMES, log_scale)]
+    return values, labels
+
+
+def plot_corner(results, path, title: str = "", truths=None, names=None):
+    """Corner plot of the posterior of (kb, kr, a, b, kd), one or more results overlaid.
+
+    Log-scale parameters are drawn as log10, the coordinates the prior is uniform in, where
+    the posterior is closest to Gaussian; contours enclose 39 % and 86 % (one and two
+    standard deviations of a 2-D Gaussian).
+
+    Args:
+        results: an `~brdfjax.posterior.UncertaintyResult` or a list of them (e.g. Laplace
+            and MCMC of the same data, to compare).
+        path: output image file.
+        title: figure title.
+        truths: optional true parameters (5,) to mark (synthetic data).
+        names: legend labels (default: each result's method).
+    """
+    import corner
+
+    plt = _pyplot()
+    results = results if isinstance(results, (list, tuple)) else [results]
+    names = names or [r.method for r in results]
+    coordinates = [_corner_coordinates(r) for r in results]
+    labels = coordinates[0][1]
+    stacked = np.concatenate([values for values, _ in coordinates])
+    span = [tuple(np.quantile(stacked[:, k], [0.0005, 0.9995])) for k in range(5)]
+    colours = plt.get_cmap("tab10").colors
+    fig = None
+    for k, (values, _) in enumerate(coordinates):
+        fig = corner.corner(values, fig=fig, labels=labels, range=span, color=colours[k],
+                            levels=(0.393, 0.865), plot_datapoints=False,
+                            plot_density=False, fill_contours=False, smooth=1.0,
+                            hist_kwargs={"density": True})
+    if truths is not None:
+        log_scale = np.asarray(results[0].bounds.log_scale, dtype=bool)
+        truths = np.asarray(truths, dtype=float)
+        corner.overplot_lines(fig, np.where(log_scale, np.log10(np.abs(truths)), truths),
+                              color="black", lw=1)
+    fig.legend(handles=[plt.Line2D([], [], color=colours[k], label=name)
+                        for k, name in enumerate(names)]
+               + ([plt.Line2D([], [], color="black", label="truth")] if truths is not None
+                  else []), loc="upper right", bbox_to_anchor=(0.95, 0.9))
+    fig.suptitle(title or "posterior of kb, kr, a, b, kd")
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def plot_reflectance_bands(bands, path, title: str = "", truth=None):
+    """rho(theta_i) of Eq. (9): posterior median with 68 % and 95 % bands.
+
+    Args:
+        bands: `~brdfjax.bands.ReflectanceBands`.
+        path: output image file.
+        title: figure title.
+        truth: optional true rho at the same incidences (synthetic data).
+    """
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6.5, 4))
+    x = bands.theta_i_deg
+    ax.fill_between(x, bands.lo95, bands.hi95, color="C0", alpha=0.2, lw=0, label="95 %")
+    ax.fill_between(x, bands.lo68, bands.hi68, color="C0", alpha=0.4, lw=0, label="68 %")
+    ax.plot(x, bands.median, "C0-", label="posterior median")
+    if truth is not None:
+        ax.plot(x, truth, "k--", lw=1, label="truth")
+    ax.set_xlabel("incidence angle theta_i (deg)")
+    ax.set_ylabel("directional-hemispherical reflectance rho")
+    ax.set_title(title or "reflectance, Eq. (9)")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def plot_band_widths(bands, path, title: str = "", held_out=()):
+    """Half-width of the 95 % band relative to its middle, in percent, along each scan.
+
+    Where `plot_fit`'s bands are too thin to see, this shows how well each part of each
+    curve is determined (held-out incidences dashed).
+
+    Args:
+        bands: ``{incidence: CurveBand}`` from `brdfjax.bands.curve_bands`.
+        path: output image file.
+        title: figure title.
+        held_out: incidences (deg) not used in the fit.
+    """
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7.5, 4.5))
+    colours = plt.get_cmap("viridis")(np.linspace(0, 0.9, max(1, len(bands))))
+    held = {round(float(x), 6) for x in held_out}
+    for colour, (incidence, band) in zip(colours, sorted(bands.items())):
+        middle = (band.hi95 + band.lo95) / 2
+        width = 100 * (band.hi95 - band.lo95) / 2 / np.where(middle > 0, middle, np.nan)
+        is_held = round(float(incidence), 6) in held
+        ax.plot(band.signed_deg, width, "--" if is_held else "-", color=colour,
+                label=f"{incidence:g} deg" + (" (held out)" if is_held else ""))
+    ax.set_xlabel("reflection angle theta_r (deg; > 0: specular side, < 0: source side)")
+    ax.set_ylabel("95 % band half-width (% of the curve)")
+    ax.set_yscale("log")
+    ax.set_title(title or "how well the curves are determined")
+    ax.legend(fontsize=7, ncol=2)
+    ax.grid(alpha=0.3, which="both")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
     plt.close(fig)

@@ -10,6 +10,9 @@ import numpy as np
 from brdfjax.commands import add_reader_options, angles, reader_options
 
 DATA = Path(__file__).resolve().parents[2] / "data"
+UNCERTAINTY_METHODS = ("none", "laplace", "mcmc")
+# Incidences (deg) of the reflectance intervals written to --json.
+REFLECTANCE_INCIDENCES = tuple(range(0, 90, 10))
 
 
 def register(subparsers) -> None:
@@ -33,6 +36,18 @@ def register(subparsers) -> None:
     p.add_argument("--incidences-3d", type=angles, metavar="DEG",
                    help="incidences for --plot-3d (default: those of the data, up to 3)")
     p.add_argument("--log", action="store_true", help="log vertical axis in --plot")
+    p.add_argument("--uncertainty", choices=UNCERTAINTY_METHODS, default="laplace",
+                   help="laplace: Gaussian at the optimum, milliseconds (default); mcmc: "
+                        "emcee posterior samples, seconds; none: no intervals")
+    p.add_argument("--walkers", type=int, default=32, help="mcmc: ensemble size (default 32)")
+    p.add_argument("--mcmc-steps", type=int, default=20000,
+                   help="mcmc: cap on the chain length; it stops earlier once longer than 50 "
+                        "autocorrelation times (default 20000)")
+    p.add_argument("--chain", metavar="FILE.h5",
+                   help="mcmc: keep the chain in this HDF5 file; an existing chain resumes")
+    p.add_argument("--plot-corner", metavar="OUT",
+                   help="corner plot of the parameters' posterior (PNG; needs --uncertainty "
+                        "laplace or mcmc)")
     add_reader_options(p)
     p.set_defaults(run=run_fit)
 
@@ -88,25 +103,79 @@ def run_fit(args) -> None:
     enable_compilation_cache()
     from brdfjax.fit import fit
 
+    if args.plot_corner and args.uncertainty == "none":
+        raise ValueError("--plot-corner needs --uncertainty laplace or mcmc")
     data = load(args.file, **reader_options(args))
     result = fit(data, args.method, seed=args.seed, validate_incidences=held_out(data, args),
                  bounds=make_bounds(parse_bounds(args.bound)))
     print(summary(result, data.name))
-    write_outputs(result, data, args)
+    uncertainty = estimate_uncertainty(result, data, args)
+    if uncertainty is not None:
+        print(uncertainty.table())
+    write_outputs(result, data, args, uncertainty)
 
 
-def write_outputs(result, data, args) -> None:
-    """The files asked for, each written whole or not at all, after all computing is done."""
+def estimate_uncertainty(result, data, args):
+    """The `~brdfjax.posterior.UncertaintyResult` asked for by ``--uncertainty``, or None.
+
+    Nothing of the other method is imported or computed: ``none`` does no work at all, and
+    ``laplace`` never imports emcee. Warnings go into the printed table, not to stderr.
+    """
+    if args.uncertainty == "none":
+        return None
+    if result.status == "failed":
+        print("uncertainty: none, the fit failed")
+        return None
+    import warnings
+
+    from brdfjax.posterior import UncertaintyWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UncertaintyWarning)
+        if args.uncertainty == "laplace":
+            from brdfjax.laplace import laplace_approximation
+
+            return laplace_approximation(data, result, seed=args.seed)
+        from brdfjax.posterior import sample_posterior
+
+        return sample_posterior(data, result, walkers=args.walkers, max_steps=args.mcmc_steps,
+                                seed=args.seed, chain_path=args.chain)
+
+
+def write_outputs(result, data, args, uncertainty=None) -> None:
+    """The files asked for, each written whole or not at all, after all computing is done.
+
+    With an ``uncertainty`` result, --json gains an "uncertainty" entry (parameter
+    intervals and the reflectance's at `REFLECTANCE_INCIDENCES`), --plot draws the posterior
+    medians' curves in 68 % and 95 % bands, and --plot-corner draws the posterior.
+    """
     from brdfjax.formats import replace_atomically, write_atomically
 
+    record = result.to_dict()
+    bands = None
+    if uncertainty is not None:
+        from brdfjax.bands import curve_bands, reflectance_bands
+
+        if args.json:
+            record["uncertainty"] = uncertainty.to_dict()
+            record["uncertainty"]["reflectance"] = reflectance_bands(
+                uncertainty.samples, REFLECTANCE_INCIDENCES, constants=result.constants,
+                seed=args.seed).to_dict()
+        if args.plot:
+            bands = curve_bands(uncertainty.samples, data.incidences_deg,
+                                constants=result.constants)
     if args.json:
-        write_atomically(args.json, json.dumps(result.to_dict(), indent=2) + "\n")
+        write_atomically(args.json, json.dumps(record, indent=2) + "\n")
     if args.plot:
         from brdfjax.plot import plot_fit
 
+        # With bands, the curves are the posterior's (its medians), which the bands surround;
+        # without, the fit's.
         replace_atomically(args.plot, lambda path: plot_fit(
-            data, result.vector, path, held_out=result.validation_incidences, log=args.log,
-            title=f"{data.name}: E = {100 * result.error:.3g} %"))
+            data, result.vector if bands is None else uncertainty.median, path,
+            held_out=result.validation_incidences, log=args.log, bands=bands,
+            title=f"{data.name}: E = {100 * result.error:.3g} %" if bands is None else
+            f"{data.name}: {uncertainty.method} posterior medians, 68/95 % bands"))
     if args.plot_3d:
         from brdfjax.plot import plot_hemisphere
 
@@ -114,6 +183,11 @@ def write_outputs(result, data, args) -> None:
                       else data.incidences_deg[:3])
         replace_atomically(args.plot_3d, lambda path: plot_hemisphere(
             result.vector, incidences, path, title=f"{data.name}: fitted model"))
+    if args.plot_corner:
+        from brdfjax.plot import plot_corner
+
+        replace_atomically(args.plot_corner, lambda path: plot_corner(
+            uncertainty, path, title=f"{data.name}: {uncertainty.method} posterior"))
 
 
 def summary(result, name: str) -> str:

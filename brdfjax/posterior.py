@@ -1,0 +1,567 @@
+"""The posterior of (kb, kr, a, b, kd): likelihood, prior, and sampling it with emcee.
+
+Likelihood: Gaussian on the projected BRDF, the quantity Eq. (6) compares,
+
+    y_k = f_r0 cos(tr_k),   m_k = f_r(x) cos(tr_k)                (Eq. 5, 6)
+    log L = -1/2 sum_k [(y_k - m_k)^2 / v_k + log(2 pi v_k)]
+
+with ``v_k = (sigma_k cos tr_k)^2`` when the data carry a ``sigma`` column, and otherwise the
+goniometer noise model ``v_k = (s_rel m_k)^2 + s_abs^2`` (relative plus absolute: the paper's
+instrument quotes under 5 % relative error), whose two scales are inferred with the
+parameters, not assumed. The Eq. (6) weights are a choice of fit objective, not a statement
+about noise, so the likelihood does not use them (points of weight zero are left out).
+
+Prior, stated plainly: uniform in the coordinates the fit searches, i.e. uniform on the unit
+cube of `brdfjax.bounds` (log10 of kb, kr, a, kd and linear b, within the bounds), and, for
+the noise model, uniform in log10 s_rel on [1e-4, 1] and in log10 s_abs on
+[1e-8, 1] x max|y|; zero outside. The posterior is therefore the likelihood restricted to
+that box, and its mode is the maximum-likelihood point.
+
+Sampling coordinates ``x``: the five unit-cube coordinates, then (noise model only) log10
+s_rel and log10 s_abs. `log_posterior` is pure JAX; `sample_posterior` hands its jitted,
+walker-vmapped form to emcee's ``EnsembleSampler(vectorize=True)``. emcee (and h5py) are
+imported only inside `sample_posterior`, so importing this module stays light.
+
+emcee 3.1.6's ``DESnookerMove`` samples the wrong distribution: it projects on
+``delta / sqrt(|delta|)`` instead of the unit vector and weights the acceptance by
+``(|q - z| / |x - z|)^((d - 1) / 2)`` instead of ``^(d - 1)`` (the snooker update of ter
+Braak and Vrugt, Statistics and Computing 18, 435, 2008). On a 5-D Gaussian it gives
+variances 25 % too small alone and 3-5 % too small in the 0.8 DE / 0.2 snooker mix, where the
+corrected move gives them to 1 % (``benchmarks/bench_uncertainty.py`` repeats the check).
+`sample_posterior` uses that mix with the corrected move, `snooker_move`.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from brdfjax.bounds import Bounds, default_bounds, from_unit
+from brdfjax.geometry import PAPER_CONSTANTS, Scene, ShadowingConstants
+from brdfjax.measurements import Measurements
+from brdfjax.model import PARAMETER_NAMES, evaluate_projected
+from brdfjax.objective import prepare
+
+# Log-uniform prior ranges of the noise model's scales: relative 0.01 % to 100 %; absolute
+# 1e-8 to 1 times the largest measured projected BRDF.
+RELATIVE_NOISE_RANGE = (1e-4, 1.0)
+ABSOLUTE_NOISE_RANGE = (1e-8, 1.0)
+NOISE_NAMES = ("sigma_rel", "sigma_abs")
+
+# Quantiles of the reported central intervals: 68.27 % (one normal standard deviation each
+# side) and 95 %.
+INTERVALS = {"ci68": (0.158655, 0.841345), "ci95": (0.025, 0.975)}
+
+# emcee's convergence rule: trust the chain once it is longer than 50 integrated
+# autocorrelation times (emcee's ``integrated_time(tol=50)``); burn-in 2 tau, thinning tau/2
+# (the emcee documentation's "Autocorrelation analysis" tutorial).
+AUTOCORRELATION_LENGTHS = 50
+
+# A reduced chi-square outside this range says the given sigma do not describe the scatter.
+CHI2_RANGE = (0.5, 2.0)
+
+
+class UncertaintyWarning(UserWarning):
+    """An uncertainty estimate that should not be trusted as it is (the message says why)."""
+
+
+class Posterior(NamedTuple):
+    """What the log-posterior needs (a pytree of arrays; shapes (N,) unless noted).
+
+    Attributes:
+        scene: geometry terms of the N points.
+        target: measured projected BRDF ``y = f_r0 cos(tr)``.
+        sigma: standard uncertainty of ``y`` (``sigma cos tr``), or None: noise model.
+        bounds: the parameter box; its unit cube is the prior's support.
+        lower, upper: the prior box of the sampling coordinates, (ndim,).
+    """
+
+    scene: Scene
+    target: jax.Array
+    sigma: jax.Array | None
+    bounds: Bounds
+    lower: jax.Array
+    upper: jax.Array
+
+    @property
+    def ndim(self) -> int:
+        """5 with given sigma, 7 with the two noise scales."""
+        return int(self.lower.shape[0])
+
+    @property
+    def names(self) -> tuple:
+        """Names of the sampling coordinates."""
+        return PARAMETER_NAMES + (() if self.sigma is not None else NOISE_NAMES)
+
+
+def build_posterior(data: Measurements, bounds: Bounds | None = None,
+                    constants: ShadowingConstants = PAPER_CONSTANTS) -> Posterior:
+    """The likelihood's arrays and the prior box for a measurement set.
+
+    Points at ``theta_r = 90 deg`` (projected BRDF 0 whatever the parameters) and points of
+    weight zero carry no information and are left out.
+
+    Args:
+        data: the measurements (the training subset: held-out incidences already removed).
+        bounds: the parameter box (`brdfjax.bounds.default_bounds` if None).
+        constants: the shadowing constants of Eq. (3).
+
+    Returns:
+        A `Posterior`.
+    """
+    bounds = default_bounds() if bounds is None else bounds
+    keep = np.cos(data.theta_r) > 1e-12
+    if data.weights is not None:
+        keep &= data.weights > 0
+    data = data.select(keep)
+    if len(data) == 0:
+        raise ValueError(f"{data.name}: no measurement with theta_r < 90 deg and weight > 0")
+    cos_r = np.cos(data.theta_r)
+    target = data.brdf * cos_r
+    lower, upper = np.zeros(5), np.ones(5)
+    sigma = None
+    if data.sigma is not None:
+        sigma = jnp.asarray(data.sigma * cos_r)
+    else:
+        scale = max(float(np.max(np.abs(target))), np.finfo(float).tiny)
+        lower = np.concatenate([lower, np.log10([RELATIVE_NOISE_RANGE[0],
+                                                 ABSOLUTE_NOISE_RANGE[0] * scale])])
+        upper = np.concatenate([upper, np.log10([RELATIVE_NOISE_RANGE[1],
+                                                 ABSOLUTE_NOISE_RANGE[1] * scale])])
+    return Posterior(prepare(data, constants), jnp.asarray(target), sigma, bounds,
+                     jnp.asarray(lower), jnp.asarray(upper))
+
+
+def training_setup(data: Measurements, fit, bounds: Bounds | None = None,
+                   constants: ShadowingConstants = PAPER_CONSTANTS,
+                   validate_incidences=None) -> tuple[Posterior, np.ndarray]:
+    """The posterior of the points a fit used, and the fitted parameters to start from.
+
+    Args:
+        data: all measurements.
+        fit: a `brdfjax.fit.FitResult` (its bounds, constants and held-out incidences are
+            used, and the arguments below ignored) or parameters (5,) ordered kb, kr, a, b, kd.
+        bounds, constants, validate_incidences: as for `brdfjax.fit.fit`, when ``fit`` is
+            bare parameters.
+
+    Returns:
+        The `Posterior` of the training points and the starting parameters (5,).
+    """
+    from brdfjax.fit import FitResult, split
+
+    if isinstance(fit, FitResult):
+        bounds, constants = fit.bounds, fit.constants
+        validate_incidences = fit.validation_incidences
+        start = fit.vector
+    else:
+        start = np.asarray(fit, dtype=float).reshape(-1)
+        if start.shape != (5,):
+            raise ValueError(f"expected a FitResult or 5 parameters, got shape {start.shape}")
+    train, _ = split(data, validate_incidences)
+    return build_posterior(train, bounds, constants), start
+
+
+def model_variance(x, model, post: Posterior) -> jax.Array:
+    """Variance of each projected measurement: given, or ``(s_rel m)^2 + s_abs^2``."""
+    if post.sigma is not None:
+        return post.sigma**2
+    return (10.0 ** x[5] * model) ** 2 + (10.0 ** x[6]) ** 2
+
+
+def log_likelihood(x, post: Posterior) -> jax.Array:
+    """Gaussian log-likelihood of the projected BRDF at sampling coordinates ``x`` (ndim,)."""
+    model = evaluate_projected(from_unit(x[:5], post.bounds), post.scene)
+    variance = model_variance(x, model, post)
+    return -0.5 * jnp.sum((post.target - model) ** 2 / variance
+                          + jnp.log(2 * jnp.pi * variance))
+
+
+def log_posterior(x, post: Posterior) -> jax.Array:
+    """Unnormalised log-posterior: the log-likelihood inside the prior box, -inf outside."""
+    inside = jnp.all((x >= post.lower) & (x <= post.upper))
+    value = log_likelihood(jnp.clip(x, post.lower, post.upper), post)
+    return jnp.where(inside & jnp.isfinite(value), value, -jnp.inf)
+
+
+log_posterior_batch = jax.jit(jax.vmap(log_posterior, in_axes=(0, None)))
+log_posterior_batch.__doc__ = "`log_posterior` of each row of x (walkers, ndim), jitted."
+
+
+def physical(x, post: Posterior) -> np.ndarray:
+    """Physical parameters (..., 5) from sampling coordinates (..., ndim)."""
+    return np.asarray(from_unit(jnp.asarray(x)[..., :5], post.bounds))
+
+
+def summarize(samples) -> dict:
+    """Median, standard deviation and central intervals of each column of ``samples``.
+
+    Returns:
+        ``{"median": (D,), "std": (D,), "ci68": (D, 2), "ci95": (D, 2)}``.
+    """
+    samples = np.asarray(samples, dtype=float)
+    summary = {"median": np.median(samples, axis=0), "std": np.std(samples, axis=0, ddof=1)}
+    for name, levels in INTERVALS.items():
+        summary[name] = np.quantile(samples, levels, axis=0).T
+    return summary
+
+
+def correlation(covariance) -> np.ndarray:
+    """The correlation matrix of a covariance matrix."""
+    scale = np.sqrt(np.diag(covariance))
+    return covariance / np.outer(scale, scale)
+
+
+def chi2_warning(x, post: Posterior) -> str | None:
+    """A sentence when given sigma do not describe the scatter at ``x``, else None."""
+    if post.sigma is None:
+        return None
+    model = evaluate_projected(from_unit(jnp.asarray(x)[:5], post.bounds), post.scene)
+    dof = max(post.target.shape[0] - 5, 1)
+    reduced = float(jnp.sum(((post.target - model) / post.sigma) ** 2)) / dof
+    if CHI2_RANGE[0] <= reduced <= CHI2_RANGE[1]:
+        return None
+    return (f"chi-square per degree of freedom is {reduced:.3g}, not near 1: the data's sigma "
+            "do not describe the scatter about the model (misfit or mis-stated errors), so "
+            "the intervals are " + ("too narrow" if reduced > 1 else "too wide") +
+            "; remove the sigma column to infer the noise instead")
+
+
+@dataclass
+class UncertaintyResult:
+    """Posterior summaries of (kb, kr, a, b, kd), from either method, with the same fields.
+
+    Attributes:
+        method: ``laplace`` (`brdfjax.laplace.laplace_approximation`) or ``mcmc``
+            (`sample_posterior`).
+        status: ``ok`` or ``untrustworthy`` (laplace); ``converged`` or ``not_converged``
+            (mcmc).
+        warnings: sentences for the user; empty when nothing is wrong.
+        median: posterior medians (5,). For Laplace the posterior mode, which is the median
+            of its Gaussian in the prior's coordinates.
+        std: standard deviations (5,) in physical units (Laplace: linearised).
+        ci68, ci95: central 68.27 % and 95 % credible intervals (5, 2).
+        covariance: physical covariance (5, 5) (Laplace: linearised).
+        correlation: correlation (5, 5) of the prior's coordinates (log10 kb, kr, a, kd and
+            b); for Laplace it equals the linearised correlation of the physical parameters.
+        samples: physical parameter draws (S, 5): posterior samples, or draws from the
+            Laplace Gaussian; bands are computed from them.
+        noise: the noise model and, if inferred, each scale's median and 95 % interval.
+        center, center_covariance: mean (ndim,) and covariance (ndim, ndim) of the sampling
+            coordinates (Laplace: mode and inverse Fisher information).
+        diagnostics: method-specific numbers (condition number; tau, ESS, acceptance).
+        timings: wall seconds.
+        chain: emcee's chain (steps, walkers, ndim) in sampling coordinates; None for Laplace.
+        bounds: the parameter box of the prior.
+    """
+
+    method: str
+    status: str
+    warnings: list
+    median: np.ndarray
+    std: np.ndarray
+    ci68: np.ndarray
+    ci95: np.ndarray
+    covariance: np.ndarray
+    correlation: np.ndarray
+    samples: np.ndarray = field(repr=False)
+    noise: dict
+    center: np.ndarray = field(repr=False)
+    center_covariance: np.ndarray = field(repr=False)
+    diagnostics: dict
+    timings: dict
+    chain: np.ndarray | None = field(repr=False, default=None)
+    bounds: Bounds = field(repr=False, default_factory=default_bounds)
+
+    def summaries(self) -> dict:
+        """``{name: {"median", "std", "ci68": [lo, hi], "ci95": [lo, hi]}}`` per parameter."""
+        return {name: {"median": float(self.median[k]), "std": float(self.std[k]),
+                       "ci68": [float(v) for v in self.ci68[k]],
+                       "ci95": [float(v) for v in self.ci95[k]]}
+                for k, name in enumerate(PARAMETER_NAMES)}
+
+    def to_dict(self) -> dict:
+        """A JSON-ready summary (what ``brdfjax fit --json`` writes under "uncertainty")."""
+        return {
+            "method": self.method,
+            "status": self.status,
+            "warnings": list(self.warnings),
+            "params": self.summaries(),
+            "correlation": {a: {b: float(self.correlation[i, j])
+                                for j, b in enumerate(PARAMETER_NAMES)}
+                            for i, a in enumerate(PARAMETER_NAMES)},
+            "noise": self.noise,
+            "diagnostics": self.diagnostics,
+            "timings": self.timings,
+        }
+
+    def table(self) -> str:
+        """A readable table of the intervals, the strongest correlations and any warnings."""
+        noise = self.noise["model"]
+        for name in NOISE_NAMES:
+            if name in self.noise:
+                interval = self.noise[name]["ci95"]
+                noise += (f", {name} {self.noise[name]['median']:.3g} " +
+                          ("(at the edge of its prior)" if interval is None else
+                           f"[{interval[0]:.3g}, {interval[1]:.3g}]"))
+        lines = [f"uncertainty ({self.method}, {self.status}); noise: {noise}",
+                 "  (the likelihood weights points by 1/variance, Eq. 6 alike: medians "
+                 + "need not equal the fit)",
+                 f"  {'':>3} {'median':>12} {'std':>11}   {'68 % interval':<27} 95 % interval"]
+        for k, name in enumerate(PARAMETER_NAMES):
+            lines.append(f"  {name:>3} {self.median[k]:12.6g} {self.std[k]:11.4g}   "
+                         f"{_interval(self.ci68[k]):<27} {_interval(self.ci95[k])}")
+        pairs = sorted(((abs(self.correlation[i, j]), i, j) for i in range(5)
+                        for j in range(i + 1, 5)), reverse=True)[:3]
+        lines.append("  strongest correlations: " + ", ".join(
+            f"{PARAMETER_NAMES[i]}-{PARAMETER_NAMES[j]} {self.correlation[i, j]:+.3f}"
+            for _, i, j in pairs))
+        lines += [f"  warning: {text}" for text in self.warnings]
+        return "\n".join(lines)
+
+
+def _interval(pair) -> str:
+    return f"[{pair[0]:.5g}, {pair[1]:.5g}]"
+
+
+def noise_summary(post: Posterior, median=None, ci95=None) -> dict:
+    """The "noise" entry of an `UncertaintyResult`.
+
+    Args:
+        post: the posterior (given sigma, or the noise model).
+        median, ci95: for the noise model, log10 of the scales' medians (2,) and their 95 %
+            intervals (2, 2); a NaN interval is reported as None (not determined).
+    """
+    if post.sigma is not None:
+        return {"model": "given sigma"}
+    summary = {"model": "relative + absolute, inferred"}
+    if median is not None:
+        for k, name in enumerate(NOISE_NAMES):
+            interval = None if np.any(np.isnan(ci95[k])) else [float(10.0**v) for v in ci95[k]]
+            summary[name] = {"median": float(10.0 ** median[k]), "ci95": interval}
+    return summary
+
+
+def snooker_move():
+    """ter Braak and Vrugt's (2008) snooker update, as emcee's ``DESnookerMove`` should be.
+
+    For each walker ``x``: pick ``z, z1, z2`` from the other three quarters of the ensemble
+    (one from each, roles shuffled, as emcee does), move along the unit vector
+    ``u = (x - z) / |x - z|`` by ``gamma u.(z1 - z2)``, and accept with the extra factor
+    ``(|q - z| / |x - z|)^(d - 1)``. Vectorised over the walkers. See the
+    module docstring for what emcee 3.1.6 does instead.
+    """
+    from emcee.moves import DESnookerMove
+
+    class SnookerMove(DESnookerMove):
+        def get_proposal(self, s, c, random):
+            count, ndim = s.shape
+            # z, z1, z2 from three different quarters of the ensemble, roles shuffled.
+            picks = np.stack([part[random.randint(len(part), size=count)] for part in c[:3]],
+                             axis=1)
+            roles = np.argsort(random.random_sample((count, 3)), axis=1)
+            z, z1, z2 = np.moveaxis(np.take_along_axis(picks, roles[:, :, None], axis=1), 1, 0)
+            delta = s - z
+            norm = np.linalg.norm(delta, axis=1)
+            unit = delta / norm[:, None]
+            step = self.gammas * np.sum(unit * (z1 - z2), axis=1)
+            proposal = s + unit * step[:, None]
+            # |q - z| = |norm + step| along the unit vector.
+            log_factor = (ndim - 1.0) * (np.log(np.abs(norm + step)) - np.log(norm))
+            return proposal, log_factor
+
+    return SnookerMove()
+
+
+def draw_inside(rng: np.random.Generator, mean, covariance, lower, upper, count: int,
+                rounds: int = 100) -> np.ndarray:
+    """Draws (count, D) from a Gaussian truncated to the box [lower, upper], by rejection.
+
+    Draws still outside after ``rounds`` rounds (a Gaussian mostly outside the box, which
+    the Laplace approximation has already flagged) are clipped into it.
+    """
+    draws = np.empty((count, len(mean)))
+    missing = np.arange(count)
+    for _ in range(rounds):
+        if missing.size == 0:
+            return draws
+        new = rng.multivariate_normal(mean, covariance, size=missing.size, method="eigh",
+                                      check_valid="ignore")
+        inside = np.all((new >= lower) & (new <= upper), axis=1)
+        draws[missing[inside]] = new[inside]
+        missing = missing[~inside]
+    draws[missing] = np.clip(rng.multivariate_normal(mean, covariance, size=missing.size,
+                                                     method="eigh", check_valid="ignore"),
+                             lower, upper)
+    return draws
+
+
+def _starting_walkers(start: UncertaintyResult, post: Posterior, walkers: int,
+                      rng: np.random.Generator) -> np.ndarray:
+    """Walkers drawn from the Laplace Gaussian, each spread capped at a quarter of the box.
+
+    The cap keeps a flat or unidentified direction (an absolute noise scale of zero, a
+    singular curvature) from throwing walkers across the whole prior.
+    """
+    lower, upper = np.asarray(post.lower), np.asarray(post.upper)
+    covariance = np.asarray(start.center_covariance, dtype=float)
+    scale = np.sqrt(np.clip(np.diag(covariance), 0, None))
+    cap = np.minimum(1.0, (upper - lower) / 4 / np.where(scale > 0, scale, np.inf))
+    return draw_inside(rng, np.clip(start.center, lower, upper),
+                       covariance * np.outer(cap, cap), lower, upper, walkers)
+
+
+def autocorrelation_time(chain) -> np.ndarray:
+    """emcee's integrated autocorrelation time of each coordinate of a chain (steps, walkers, D).
+
+    Computed with ``tol=0``, so that it never raises or logs: callers judge the length.
+    """
+    from emcee.autocorr import integrated_time
+
+    return integrated_time(np.asarray(chain), tol=0)
+
+
+def sample_posterior(data: Measurements, fit, *, walkers: int = 32, max_steps: int = 20000,
+                     check_every: int = 250, stop_when_converged: bool = True, seed: int = 0,
+                     chain_path=None, progress: bool = True,
+                     start: UncertaintyResult | None = None, bounds: Bounds | None = None,
+                     constants: ShadowingConstants = PAPER_CONSTANTS,
+                     validate_incidences=None) -> UncertaintyResult:
+    """Sample the posterior with emcee until the chain is longer than 50 autocorrelation times.
+
+    Walkers start from the Laplace approximation at the fit's optimum (`start`, computed if
+    not given). The sampler (``vectorize=True``, moves 0.8 differential evolution and 0.2
+    corrected snooker) runs ``check_every`` steps at a time; after each chunk the integrated
+    autocorrelation time tau is estimated, and sampling stops once the chain is longer than
+    50 max(tau), or at ``max_steps`` with status ``not_converged`` and an
+    `UncertaintyWarning`. Burn-in is 2 max(tau), thinning tau/2 (min over coordinates).
+
+    Args:
+        data: all measurements.
+        fit: a `brdfjax.fit.FitResult`, or parameters (5,) (see `training_setup`).
+        walkers: ensemble size (at least twice the number of sampled coordinates).
+        max_steps: cap on the chain length (a resumed chain counts its stored steps).
+        check_every: steps between convergence checks.
+        stop_when_converged: False runs exactly ``max_steps`` steps (benchmarks).
+        seed: seeds the starting walkers and emcee's random state; the same seed gives the
+            same chain. A resumed chain continues the random state saved in its file.
+        chain_path: an HDF5 file (emcee's ``HDFBackend``) that keeps the chain; if it
+            already holds a chain of the same shape, sampling resumes from its last step.
+        progress: show a tqdm progress bar.
+        start: a Laplace `UncertaintyResult` of the same data to start the walkers from.
+        bounds, constants, validate_incidences: see `training_setup`.
+
+    Returns:
+        An `UncertaintyResult` with method ``mcmc``.
+    """
+    import emcee
+    from tqdm.auto import tqdm
+
+    post, _ = training_setup(data, fit, bounds, constants, validate_incidences)
+    if walkers < 2 * post.ndim:
+        raise ValueError(f"emcee needs at least {2 * post.ndim} walkers for {post.ndim} "
+                         f"sampled coordinates, got {walkers}")
+    if max_steps < 1 or check_every < 1:
+        raise ValueError("max_steps and check_every must be positive")
+    tic = time.perf_counter()
+    backend = None if chain_path is None else emcee.backends.HDFBackend(str(chain_path))
+    resume = backend is not None and backend.initialized and backend.iteration > 0
+    if resume and backend.shape != (walkers, post.ndim):
+        raise ValueError(f"{chain_path} holds a chain of {backend.shape[0]} walkers x "
+                         f"{backend.shape[1]} coordinates, not {walkers} x {post.ndim}; "
+                         "use another file or the same settings")
+    if backend is not None and not resume:
+        backend.reset(walkers, post.ndim)
+
+    def log_probability(x):
+        return np.asarray(log_posterior_batch(x, post))
+
+    sampler = emcee.EnsembleSampler(
+        walkers, post.ndim, log_probability, vectorize=True, backend=backend,
+        moves=[(emcee.moves.DEMove(), 0.8), (snooker_move(), 0.2)])
+    if resume:
+        state = sampler.get_last_sample()
+    else:
+        if start is None:
+            from brdfjax.laplace import laplace_approximation
+
+            start = laplace_approximation(data, fit, bounds=post.bounds, constants=constants,
+                                          validate_incidences=validate_incidences, draws=0)
+        rng = np.random.default_rng(seed)
+        state = _starting_walkers(start, post, walkers, rng)
+        sampler.random_state = np.random.RandomState(rng.integers(2**32)).get_state()
+
+    tau = np.full(post.ndim, np.nan)
+    with tqdm(total=max_steps, initial=sampler.iteration, disable=not progress,
+              desc="emcee", unit="step") as bar:
+        while sampler.iteration < max_steps:
+            chunk = min(check_every if stop_when_converged else max_steps,
+                        max_steps - sampler.iteration)
+            for step in sampler.sample(state, iterations=chunk):
+                bar.update(1)
+            state = step
+            tau = autocorrelation_time(sampler.get_chain())
+            bar.set_postfix(tau=f"{np.max(tau):.1f}")
+            if stop_when_converged and _converged(tau, sampler.iteration):
+                break
+    timings = {"sampling": time.perf_counter() - tic}
+    return _mcmc_result(sampler, post, tau, chain_path, timings)
+
+
+def _converged(tau, steps: int) -> bool:
+    return bool(np.all(np.isfinite(tau)) and steps > AUTOCORRELATION_LENGTHS * np.max(tau))
+
+
+def _mcmc_result(sampler, post: Posterior, tau, chain_path, timings) -> UncertaintyResult:
+    """Summaries, diagnostics and warnings of a finished emcee run."""
+    steps, walkers = sampler.iteration, sampler.nwalkers
+    finite = np.all(np.isfinite(tau))
+    burn_in = min(int(2 * np.max(tau)), steps // 2) if finite else steps // 2
+    thin = max(1, int(0.5 * np.min(tau))) if finite else 1
+    flat = sampler.get_chain(discard=burn_in, thin=thin, flat=True)
+    samples = physical(flat, post)
+    stats = summarize(samples)
+    messages = []
+    status = "converged"
+    if not _converged(tau, steps):
+        status = "not_converged"
+        messages.append(
+            f"the chain did not converge: {steps} steps is "
+            f"{steps / np.max(tau):.3g} autocorrelation times (max tau {np.max(tau):.3g}), "
+            f"fewer than {AUTOCORRELATION_LENGTHS}; the intervals are unreliable. Run longer "
+            "(raise max_steps" + (f"; the chain in {chain_path} resumes)" if chain_path else ")"))
+    warning = chi2_warning(np.median(flat, axis=0), post)
+    if warning:
+        messages.append(warning)
+    for text in messages:
+        warnings.warn(text, UncertaintyWarning, stacklevel=3)
+    noise = noise_summary(post)
+    if post.ndim > 5:
+        scales = summarize(flat[:, 5:])
+        noise = noise_summary(post, scales["median"], scales["ci95"])
+    ess = walkers * (steps - burn_in) / tau
+    acceptance = np.asarray(sampler.acceptance_fraction)
+    diagnostics = {
+        "walkers": walkers, "steps": steps, "burn_in": burn_in, "thin": thin,
+        "samples": int(samples.shape[0]),
+        "tau": dict(zip(post.names, map(float, tau))),
+        "effective_samples": dict(zip(post.names, map(float, ess))),
+        "acceptance_fraction": float(np.mean(acceptance)),
+        "acceptance_fraction_min": float(np.min(acceptance)),
+        "steps_per_tau": float(steps / np.max(tau)),
+        "chain_path": None if chain_path is None else str(chain_path),
+    }
+    return UncertaintyResult(
+        method="mcmc", status=status, warnings=messages, median=stats["median"],
+        std=stats["std"], ci68=stats["ci68"], ci95=stats["ci95"],
+        covariance=np.cov(samples.T), correlation=np.corrcoef(flat[:, :5].T),
+        samples=samples, noise=noise,
+        center=np.mean(flat, axis=0), center_covariance=np.cov(flat.T),
+        diagnostics=diagnostics, timings=timings, chain=sampler.get_chain(),
+        bounds=post.bounds)
+

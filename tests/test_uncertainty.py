@@ -1,0 +1,382 @@
+"""Uncertainty: likelihood, Laplace, emcee and bands against independent computations.
+
+One fit, one Laplace approximation and one converged chain of the bundled white-paint data
+are shared by the whole module, so the compiled functions are built once.
+"""
+
+import dataclasses
+import json
+import subprocess
+import sys
+import warnings
+
+import numpy as np
+import pytest
+from conftest import DATA, REPO
+from scipy.optimize import minimize
+from scipy.stats import norm
+
+import brdfjax.fit
+from brdfjax.bands import curve_bands, reflectance_bands
+from brdfjax.bounds import make_bounds, to_unit
+from brdfjax.cli import main
+from brdfjax.fit import fit, split
+from brdfjax.laplace import estimate_noise, laplace_approximation
+from brdfjax.measurements import Measurements
+from brdfjax.model import PAPER_SAMPLES, PARAMETER_NAMES, projected_brdf
+from brdfjax.posterior import (
+    UncertaintyWarning,
+    build_posterior,
+    log_likelihood,
+    log_posterior,
+    log_posterior_batch,
+    sample_posterior,
+)
+from brdfjax.reflectance import reflectance
+from brdfjax.synthetic import paper_sample
+
+TRUTH = np.array(PAPER_SAMPLES["white_paint"], dtype=float)
+HELD_OUT = [21, 52]
+LOG_SCALE = np.array([True, True, True, False, True])
+
+
+def log_coordinates(params):
+    """log10 of kb, kr, a, kd and b as it is: where the prior is uniform (up to scale)."""
+    return np.where(LOG_SCALE, np.log10(np.abs(params)), params)
+
+
+@pytest.fixture(scope="module")
+def white_fit(white_paint):
+    """LM from the truth on the training incidences (the fit itself is tested elsewhere)."""
+    return fit(white_paint, "lm", start=TRUTH, validate_incidences=HELD_OUT)
+
+
+@pytest.fixture(scope="module")
+def white_laplace(white_paint, white_fit):
+    return laplace_approximation(white_paint, white_fit)
+
+
+@pytest.fixture(scope="module")
+def white_mcmc(white_paint, white_fit, white_laplace):
+    return sample_posterior(white_paint, white_fit, start=white_laplace, seed=1,
+                            progress=False)
+
+
+@pytest.fixture(scope="module")
+def training(white_paint):
+    return split(white_paint, HELD_OUT)[0]
+
+
+def test_log_likelihood_is_the_gaussian_density(training):
+    post = build_posterior(training)
+    x = np.asarray(to_unit(TRUTH * 1.01, post.bounds))
+    cos_r = np.cos(training.theta_r)
+    model = np.asarray(projected_brdf(TRUTH * 1.01, training.theta_i, training.theta_r,
+                                      training.phi_r))
+    expected = norm.logpdf(training.brdf * cos_r, model, training.sigma * cos_r).sum()
+    assert float(log_likelihood(x, post)) == pytest.approx(expected, rel=1e-12)
+    assert float(log_posterior(x, post)) == pytest.approx(expected, rel=1e-12)
+
+    # Without sigma: two more coordinates, the log10 noise scales, and the variance model.
+    noisy = build_posterior(dataclasses.replace(training, sigma=None))
+    x = np.concatenate([x, [np.log10(0.03), np.log10(1e-3)]])
+    expected = norm.logpdf(training.brdf * cos_r, model,
+                           np.sqrt((0.03 * model) ** 2 + 1e-3**2)).sum()
+    assert noisy.ndim == 7
+    assert float(log_likelihood(x, noisy)) == pytest.approx(expected, rel=1e-12)
+
+    # The prior box: -inf just outside, in the batch form emcee calls too.
+    outside = np.array([x, x, x])
+    outside[0, 3], outside[1, 5] = 1.0 + 1e-9, noisy.upper[5] + 1e-9
+    values = np.asarray(log_posterior_batch(outside, noisy))
+    assert values[0] == values[1] == -np.inf and values[2] == pytest.approx(expected)
+
+
+def test_noise_scales_match_a_direct_maximisation(training):
+    # Relative and absolute noise together, so both scales are identifiable.
+    rng = np.random.default_rng(5)
+    model = np.asarray(projected_brdf(TRUTH, training.theta_i, training.theta_r,
+                                      training.phi_r))
+    cos_r = np.cos(training.theta_r)
+    scatter = np.sqrt((0.03 * model) ** 2 + 0.004**2) * rng.standard_normal(model.size)
+    data = dataclasses.replace(training, brdf=(model + scatter) / cos_r, sigma=None)
+    post = build_posterior(data)
+    found = np.asarray(estimate_noise(to_unit(TRUTH, post.bounds), post))
+
+    def negative_log_likelihood(log_scales):
+        s_rel, s_abs = 10.0**log_scales
+        return -norm.logpdf(data.brdf * cos_r, model,
+                            np.sqrt((s_rel * model) ** 2 + s_abs**2)).sum()
+
+    best = minimize(negative_log_likelihood, [-1.0, -2.0], method="Nelder-Mead",
+                    options={"xatol": 1e-10, "fatol": 1e-12, "maxiter": 4000}).x
+    np.testing.assert_allclose(found, best, atol=1e-6)
+    np.testing.assert_allclose(10.0**found, [0.03, 0.004], rtol=0.1)
+
+
+def test_laplace_matches_finite_differences(training, white_laplace):
+    assert white_laplace.method == "laplace" and white_laplace.status == "ok"
+    mode = white_laplace.median
+    t0 = log_coordinates(mode)
+    cos_r = np.cos(training.theta_r)
+
+    def weighted_residuals(t):
+        params = np.where(LOG_SCALE, 10.0**t, t)
+        model = np.asarray(projected_brdf(params, training.theta_i, training.theta_r,
+                                          training.phi_r))
+        return (model - training.brdf * cos_r) / (training.sigma * cos_r)
+
+    # Laplace's physical std back to the log10 coordinates: std_log10 = std / (p ln 10).
+    laplace_log = np.where(LOG_SCALE, white_laplace.std / (mode * np.log(10)),
+                           white_laplace.std)
+    # The same quantity, (J^T J)^-1 with J by central differences: to rounding.
+    jacobian = np.stack([(weighted_residuals(t0 + h) - weighted_residuals(t0 - h)) / (2 * h[k])
+                         for k, h in enumerate(np.diag(1e-6 * np.maximum(np.abs(t0), 1)))],
+                        axis=1)
+    np.testing.assert_allclose(laplace_log, np.sqrt(np.diag(np.linalg.inv(jacobian.T @ jacobian))),
+                               rtol=1e-5)
+    # The mode: there the chi-square gradient J^T r vanishes (relative to its scale).
+    information = jacobian.T @ jacobian
+    scale = np.sqrt(np.diag(information))
+    assert np.all(np.abs(jacobian.T @ weighted_residuals(t0)) < 1e-4 * scale)
+    # The condition number of the correlation form does not depend on log or linear scaling.
+    assert white_laplace.diagnostics["condition_number"] == pytest.approx(
+        np.linalg.cond(information / np.outer(scale, scale)), rel=1e-4)
+
+    # The observed curvature (finite-difference Hessian of chi^2 / 2, residual term
+    # included) differs from the expected (Fisher) one by a few per cent here.
+    def half_chi2(t):
+        return 0.5 * np.sum(weighted_residuals(t) ** 2)
+
+    step = 0.5 * laplace_log  # chi-square is near quadratic over a standard deviation
+    hessian = np.empty((5, 5))
+    for i in range(5):
+        for j in range(5):
+            ei, ej = np.eye(5)[i] * step[i], np.eye(5)[j] * step[j]
+            hessian[i, j] = (half_chi2(t0 + ei + ej) - half_chi2(t0 + ei - ej)
+                             - half_chi2(t0 - ei + ej) + half_chi2(t0 - ei - ej)) / (
+                                 4 * step[i] * step[j])
+    np.testing.assert_allclose(laplace_log, np.sqrt(np.diag(np.linalg.inv(hessian))), rtol=0.1)
+    # Intervals: the 95 % one is 1.96 / 1.00 times the 68 % one in log10 coordinates.
+    width68 = np.diff(log_coordinates(white_laplace.ci68.T), axis=0)[0]
+    width95 = np.diff(log_coordinates(white_laplace.ci95.T), axis=0)[0]
+    np.testing.assert_allclose(width95 / width68, 1.959964, rtol=1e-5)
+    np.testing.assert_allclose(width68, 2 * laplace_log, rtol=1e-5)
+
+
+def test_laplace_std_matches_the_spread_of_refits(training, white_laplace):
+    # Refit 40 noise replicates by chi-square (Eq. 6 with weights 1 / sigma_proj^2).
+    fits = []
+    for seed in range(40):
+        data = split(paper_sample("white_paint", seed=100 + seed), HELD_OUT)[0]
+        weighted = dataclasses.replace(data, weights=1 / (data.sigma * np.cos(data.theta_r)) ** 2)
+        fits.append(fit(weighted, "lm", start=TRUTH).vector)
+    spread = np.std(log_coordinates(np.array(fits)), axis=0, ddof=1)
+    mode = white_laplace.median
+    laplace_log = np.where(LOG_SCALE, white_laplace.std / (mode * np.log(10)),
+                           white_laplace.std)
+    # 40 replicates estimate a standard deviation to about 11 %: allow three times that.
+    np.testing.assert_allclose(spread, laplace_log, rtol=0.35)
+
+
+def test_laplace_is_fast_when_warm(white_paint, white_fit, white_laplace):
+    import time
+
+    times = []
+    for _ in range(5):
+        tic = time.perf_counter()
+        laplace_approximation(white_paint, white_fit)
+        times.append(time.perf_counter() - tic)
+    assert min(times) < 0.1  # target 20 ms (benchmarks/bench_uncertainty.py); loose here
+
+
+def test_laplace_flags_a_parameter_at_its_bound(white_paint):
+    # The true kd is 0.22; with kd at most 0.2 the best fit presses against that bound.
+    bounds = make_bounds({"kd": (1e-8, 0.2)})
+    with pytest.warns(UncertaintyWarning) as caught:
+        approximation = laplace_approximation(white_paint, TRUTH * [1, 1, 1, 1, 0.2 / 0.22],
+                                              bounds=bounds, validate_incidences=HELD_OUT)
+    assert approximation.status == "untrustworthy"
+    assert approximation.warnings == [str(w.message) for w in caught]
+    assert approximation.warnings[0].startswith("kd at a bound")
+    assert "mcmc" in approximation.warnings[0]
+    # The misfit is large enough that the data's sigma no longer describe the scatter.
+    assert "chi-square per degree of freedom" in approximation.warnings[1]
+
+
+def test_laplace_flags_unidentified_parameters():
+    # kb = 1e-9: the specular lobe is invisible, so kr, a and b are not determined.
+    params = TRUTH * [1e-9 / TRUTH[0], 1, 1, 1, 1]
+    data = paper_sample("white_paint")
+    clean = np.asarray(projected_brdf(params, data.theta_i, data.theta_r, data.phi_r))
+    data = dataclasses.replace(
+        data, brdf=clean / np.cos(data.theta_r) * (1 + 0.025 * np.random.default_rng(2)
+                                                    .standard_normal(clean.size)),
+        sigma=0.025 * clean / np.cos(data.theta_r))
+    with pytest.warns(UncertaintyWarning, match="do not confine a, b, kb, kr within"):
+        approximation = laplace_approximation(data, params, max_steps=5)
+    assert approximation.status == "untrustworthy"
+
+
+def test_laplace_flags_ill_conditioned_curvature(white_paint, white_fit, white_laplace):
+    condition = white_laplace.diagnostics["condition_number"]  # about 800: a-b correlated
+    with pytest.warns(UncertaintyWarning, match="ill-conditioned"):
+        approximation = laplace_approximation(white_paint, white_fit,
+                                              condition_limit=condition / 2)
+    assert approximation.status == "untrustworthy"
+
+
+def test_mcmc_converges_and_agrees_with_laplace(white_mcmc, white_laplace):
+    assert white_mcmc.method == "mcmc" and white_mcmc.status == "converged"
+    d = white_mcmc.diagnostics
+    assert d["steps"] > 50 * max(d["tau"].values())
+    assert 0.15 < d["acceptance_fraction"] < 0.6
+    assert min(d["effective_samples"].values()) > 1000
+    assert white_mcmc.chain.shape == (d["steps"], 32, 5)
+    # A near-Gaussian posterior: the two methods agree.
+    np.testing.assert_allclose(white_mcmc.std, white_laplace.std, rtol=0.15)
+    assert np.all(np.abs(white_mcmc.median - white_laplace.median) < 0.3 * white_laplace.std)
+    assert white_mcmc.correlation[2, 3] == pytest.approx(white_laplace.correlation[2, 3],
+                                                         abs=0.02)
+
+
+def test_sampler_is_reproducible_and_warns_when_not_converged(white_paint, white_fit,
+                                                               white_laplace):
+    def run(seed):
+        with pytest.warns(UncertaintyWarning, match="did not converge"):
+            return sample_posterior(white_paint, white_fit, start=white_laplace, seed=seed,
+                                    max_steps=120, progress=False)
+
+    first = run(7)
+    compiled = log_posterior_batch._cache_size()
+    again, other = run(7), run(8)
+    assert log_posterior_batch._cache_size() == compiled  # no recompilation per run
+    assert first.status == "not_converged"
+    assert "intervals are unreliable" in first.warnings[0]
+    np.testing.assert_array_equal(first.chain, again.chain)
+    assert not np.array_equal(first.chain, other.chain)
+
+
+def test_chain_resumes_from_its_file(white_paint, white_fit, white_laplace, tmp_path):
+    path = tmp_path / "chain.h5"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UncertaintyWarning)
+        short = sample_posterior(white_paint, white_fit, start=white_laplace, seed=3,
+                                 max_steps=60, chain_path=path, progress=False)
+        longer = sample_posterior(white_paint, white_fit, seed=99, max_steps=100,
+                                  chain_path=path, progress=False)
+        with pytest.raises(ValueError, match="walkers"):
+            sample_posterior(white_paint, white_fit, walkers=40, max_steps=120,
+                             chain_path=path, progress=False)
+    assert longer.chain.shape == (100, 32, 5)
+    np.testing.assert_array_equal(longer.chain[:60], short.chain)
+
+
+def test_noise_model_is_inferred_by_both_methods(white_paint, white_fit):
+    data = dataclasses.replace(white_paint, sigma=None)
+    approximation = laplace_approximation(data, white_fit)
+    assert approximation.noise["sigma_rel"]["median"] == pytest.approx(0.025, rel=0.1)
+    low, high = approximation.noise["sigma_rel"]["ci95"]
+    assert low < 0.025 < high
+    assert approximation.noise["sigma_abs"]["ci95"] is None  # none in the data: prior edge
+    with pytest.warns(UncertaintyWarning, match="did not converge"):
+        sampled = sample_posterior(data, white_fit, start=approximation, max_steps=300,
+                                   progress=False)
+    assert sampled.chain.shape[2] == 7
+    assert sampled.noise["sigma_rel"]["ci95"][0] < 0.025 < sampled.noise["sigma_rel"]["ci95"][1]
+
+
+def test_curve_bands_match_the_linearised_spread(white_laplace):
+    import jax
+
+    incidences = [21.0, 30.0]  # one held out, one fitted
+    bands = curve_bands(white_laplace.samples, incidences, count=91)
+    for incidence, band in bands.items():
+        assert np.all((band.lo95 <= band.lo68) & (band.lo68 <= band.hi68)
+                      & (band.hi68 <= band.hi95))
+        # Delta method: var f = g^T C g, g the gradient of f in the physical parameters.
+        theta_r = np.radians(np.abs(band.signed_deg))
+        phi_r = np.where(band.signed_deg > 0, np.pi, 0.0)
+        gradient = np.asarray(jax.jacfwd(projected_brdf)(
+            white_laplace.median, np.radians(incidence), theta_r, phi_r))
+        linear = np.sqrt(np.einsum("ni,ij,nj->n", gradient, white_laplace.covariance,
+                                   gradient))
+        np.testing.assert_allclose((band.hi68 - band.lo68) / 2, linear, rtol=0.12)
+
+
+def test_reflectance_bands_contain_the_truth(white_mcmc):
+    bands = reflectance_bands(white_mcmc.samples, [0.0, 45.0], draws=200)
+    truth = np.asarray(reflectance(TRUTH, np.radians([0.0, 45.0])))
+    assert np.all((bands.lo95 < truth) & (truth < bands.hi95))
+    assert np.all((bands.lo95 < bands.lo68) & (bands.lo68 < bands.median)
+                  & (bands.median < bands.hi68) & (bands.hi68 < bands.hi95))
+    assert set(bands.to_dict()) == {"0", "45"}
+
+
+@pytest.fixture
+def fit_once(monkeypatch, white_fit):
+    """The CLI's fit replaced by the module's, so CLI tests do not refit."""
+    monkeypatch.setattr(brdfjax.fit, "fit", lambda *args, **kwargs: white_fit)
+
+
+def test_cli_uncertainty_none_does_no_uncertainty_work(fit_once, monkeypatch, tmp_path, capsys):
+    def forbidden(*args, **kwargs):
+        raise AssertionError("--uncertainty none must not compute uncertainty")
+
+    for module, name in [("brdfjax.laplace", "laplace_approximation"),
+                         ("brdfjax.posterior", "sample_posterior"),
+                         ("brdfjax.bands", "curve_bands"), ("brdfjax.bands", "reflectance_bands")]:
+        monkeypatch.setattr(sys.modules[module], name, forbidden)
+    out = tmp_path / "fit.json"
+    assert main(["fit", str(DATA / "synthetic" / "white_paint.csv"), "--uncertainty", "none",
+                 "--validate-incidence", "21,52", "--json", str(out)]) == 0
+    assert "uncertainty" not in json.loads(out.read_text())
+    assert "uncertainty" not in capsys.readouterr().out
+
+
+def test_importing_uncertainty_does_not_import_emcee():
+    code = ("import sys, brdfjax.commands.fitting, brdfjax.laplace, brdfjax.bands, "
+            "brdfjax.posterior; assert 'emcee' not in sys.modules, 'emcee imported'; "
+            "assert 'h5py' not in sys.modules and 'corner' not in sys.modules")
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=REPO)
+
+
+def test_cli_json_schema_and_plots(fit_once, tmp_path, capsys):
+    out = tmp_path / "fit.json"
+    assert main(["fit", str(DATA / "synthetic" / "white_paint.csv"), "--validate-incidence",
+                 "21,52", "--json", str(out), "--plot", str(tmp_path / "fit.png"),
+                 "--plot-corner", str(tmp_path / "corner.png")]) == 0
+    table = capsys.readouterr().out
+    assert "uncertainty (laplace, ok)" in table and "95 % interval" in table
+    uncertainty = json.loads(out.read_text())["uncertainty"]
+    assert uncertainty["method"] == "laplace" and uncertainty["status"] == "ok"
+    assert set(uncertainty["params"]) == set(PARAMETER_NAMES)
+    for entry in uncertainty["params"].values():
+        assert set(entry) == {"median", "std", "ci68", "ci95"}
+        assert entry["ci95"][0] < entry["ci68"][0] < entry["median"] < entry["ci68"][1] \
+            < entry["ci95"][1]
+    assert set(uncertainty["reflectance"]) == {f"{d}" for d in range(0, 90, 10)}
+    assert set(uncertainty["reflectance"]["0"]) == {"median", "std", "ci68", "ci95"}
+    assert (tmp_path / "fit.png").stat().st_size > 0
+    assert (tmp_path / "corner.png").stat().st_size > 0
+
+
+def test_cli_mcmc_reports_an_unconverged_chain(fit_once, tmp_path, capsys):
+    out = tmp_path / "fit.json"
+    assert main(["fit", str(DATA / "synthetic" / "white_paint.csv"), "--validate-incidence",
+                 "21,52", "--uncertainty", "mcmc", "--walkers", "16", "--mcmc-steps", "80",
+                 "--json", str(out)]) == 0
+    table = capsys.readouterr().out
+    assert "uncertainty (mcmc, not_converged)" in table
+    assert "warning: the chain did not converge" in table
+    uncertainty = json.loads(out.read_text())["uncertainty"]
+    assert uncertainty["method"] == "mcmc" and uncertainty["status"] == "not_converged"
+    assert uncertainty["diagnostics"]["walkers"] == 16
+    assert main(["fit", str(DATA / "synthetic" / "white_paint.csv"), "--uncertainty", "none",
+                 "--plot-corner", str(tmp_path / "c.png")]) == 1
+
+
+def test_measurements_without_information_are_refused():
+    grazing = Measurements.from_degrees([30.0], [90.0], [0.0], [0.1])
+    with pytest.raises(ValueError, match="no measurement"):
+        build_posterior(grazing)
