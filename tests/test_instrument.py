@@ -8,8 +8,6 @@ import select
 import subprocess
 import sys
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 import pytest
 import serial
@@ -23,7 +21,7 @@ from brdfjax.instrument.driver import DisconnectedError, Instrument, RefusedErro
 from brdfjax.instrument.plan import Plan, load_plan
 from brdfjax.instrument.simulator import DataSample, NoData
 from brdfjax.measurements import DataError, Measurements
-from brdfjax.model import PAPER_SAMPLES, projected_brdf
+from brdfjax.model import PAPER_SAMPLES
 
 TRUTH = PAPER_SAMPLES["khaki_paint"]
 SEED = 1
@@ -193,32 +191,23 @@ def same_readings(a: Measurements, b: Measurements) -> bool:
                for k in ("theta_i", "theta_r", "phi_r", "brdf", "sigma"))
 
 
-def linearised_covariance(data: Measurements, params) -> np.ndarray:
-    """Covariance of the parameters that minimise Eq. (6), to first order in the noise.
-
-    Eq. (6) is unweighted least squares on ``f cos(theta_r)``, so with the Jacobian J of the
-    projected model and the data's sigma, ``cov = (J'J)^-1 J' S J (J'J)^-1`` with
-    ``S = diag(sigma cos(theta_r))^2`` (the sandwich form; not the chi^2 Hessian).
-    """
-    jacobian = np.asarray(jax.jacfwd(lambda p: projected_brdf(
-        p, data.theta_i, data.theta_r, data.phi_r))(jnp.asarray(params)))
-    noise = data.sigma * np.cos(data.theta_r)
-    bread = np.linalg.inv(jacobian.T @ jacobian)
-    return bread @ (jacobian.T @ (jacobian * noise[:, None] ** 2)) @ bread
-
-
 @pytest.mark.timeout(120)
 def test_measure_then_fit_recovers_the_simulated_parameters(clean_run, tmp_path):
     path, data = clean_run
     assert len(data) == len(PLAN.points) == 102
-    assert main(["fit", str(path), "--json", str(tmp_path / "fit.json")]) == 0
-    fitted = json.loads((tmp_path / "fit.json").read_text())["params"]
-    fitted = np.array([fitted[k] for k in TRUTH._fields])
-    sigma = np.sqrt(np.diag(linearised_covariance(data, fitted)))
-    z = (fitted - np.array(TRUTH)) / sigma
-    print("fitted", fitted, "sigma", sigma, "z", z)
-    assert np.all(np.abs(z) < 3), z
-    assert np.all(sigma < 0.15 * np.abs(np.array(TRUTH)))  # and the data pin them down
+    assert main(["fit", str(path), "--uncertainty", "laplace",
+                 "--json", str(tmp_path / "fit.json")]) == 0
+    record = json.loads((tmp_path / "fit.json").read_text())
+    uncertainty = record["uncertainty"]
+    assert uncertainty["status"] == "ok", uncertainty["warnings"]
+    for name, true in TRUTH._asdict().items():
+        reported = uncertainty["params"][name]
+        low, high = reported["ci95"]
+        print(f"{name}: true {true:g}, fit {record['params'][name]:.5g}, Laplace "
+              f"{reported['median']:.5g} +- {reported['std']:.2g}, 95 % [{low:.5g}, {high:.5g}]")
+        assert low <= true <= high
+        assert abs(record["params"][name] - true) < 3 * reported["std"]  # the Eq. (6) fit
+        assert reported["std"] < 0.1 * abs(true)  # and the data do pin it down
 
 
 @pytest.mark.timeout(120)

@@ -195,7 +195,7 @@ def _acquire(port, plan: Plan, todo, record: Journal, *, baud, timeout, retries,
                     if position[motor] != wanted:
                         instrument.move(motor, wanted)
                         position[motor] = wanted
-                if in_beam in pair and pair[0] != in_beam:  # the plate in the beam first
+                if in_beam in pair and pair[0] != in_beam:  # what is in the beam first
                     pair = pair[::-1]
                 for target in pair:
                     if target != in_beam:
