@@ -496,10 +496,12 @@ def sample_posterior(data: Measurements, fit, *, walkers: int = 32, max_steps: i
         state = _starting_walkers(start, post, walkers, rng)
         sampler.random_state = np.random.RandomState(rng.integers(2**32)).get_state()
 
-    tau = np.full(post.ndim, np.nan)
+    # A resumed chain may be long enough already.
+    tau = autocorrelation_time(sampler.get_chain()) if resume else np.full(post.ndim, np.nan)
     with tqdm(total=max_steps, initial=sampler.iteration, disable=not progress,
               desc="emcee", unit="step") as bar:
-        while sampler.iteration < max_steps:
+        while sampler.iteration < max_steps and not (
+                stop_when_converged and _converged(tau, sampler.iteration)):
             chunk = min(check_every if stop_when_converged else max_steps,
                         max_steps - sampler.iteration)
             for step in sampler.sample(state, iterations=chunk):
@@ -507,8 +509,6 @@ def sample_posterior(data: Measurements, fit, *, walkers: int = 32, max_steps: i
             state = step
             tau = autocorrelation_time(sampler.get_chain())
             bar.set_postfix(tau=f"{np.max(tau):.1f}")
-            if stop_when_converged and _converged(tau, sampler.iteration):
-                break
     timings = {"sampling": time.perf_counter() - tic}
     return _mcmc_result(sampler, post, tau, chain_path, timings)
 
@@ -519,7 +519,7 @@ def _converged(tau, steps: int) -> bool:
 
 def _mcmc_result(sampler, post: Posterior, tau, chain_path, timings) -> UncertaintyResult:
     """Summaries, diagnostics and warnings of a finished emcee run."""
-    steps, walkers = sampler.iteration, sampler.nwalkers
+    steps, walkers = int(sampler.iteration), int(sampler.nwalkers)  # numpy ints from HDF5
     finite = np.all(np.isfinite(tau))
     burn_in = min(int(2 * np.max(tau)), steps // 2) if finite else steps // 2
     thin = max(1, int(0.5 * np.min(tau))) if finite else 1

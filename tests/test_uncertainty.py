@@ -270,6 +270,7 @@ def test_chain_resumes_from_its_file(white_paint, white_fit, white_laplace, tmp_
                              chain_path=path, progress=False)
     assert longer.chain.shape == (100, 32, 5)
     np.testing.assert_array_equal(longer.chain[:60], short.chain)
+    assert json.loads(json.dumps(longer.to_dict()))["diagnostics"]["steps"] == 100
 
 
 def test_noise_model_is_inferred_by_both_methods(white_paint, white_fit):
