@@ -30,7 +30,9 @@ def register(subparsers) -> None:
     p.add_argument("--bound", action="append", default=[], metavar="NAME=LO:HI",
                    help="override a parameter's search range, e.g. b=-80:10")
     p.add_argument("--json", metavar="OUT", help="write the result as JSON")
-    p.add_argument("--plot", metavar="OUT", help="draw data and fitted curves (PNG)")
+    p.add_argument("--plot", metavar="OUT",
+                   help="draw data and fitted curves (PNG); with --uncertainty laplace or "
+                        "mcmc, the posterior's curves in 68 and 95 %% bands")
     p.add_argument("--plot-3d", metavar="OUT",
                    help="draw the fitted f_r cos(theta_r) over the hemisphere (PNG)")
     p.add_argument("--incidences-3d", type=angles, metavar="DEG",
