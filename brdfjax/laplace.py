@@ -55,6 +55,7 @@ from brdfjax.posterior import (
     draw_inside,
     model_variance,
     noise_summary,
+    physical,
     training_setup,
 )
 
@@ -130,7 +131,7 @@ def laplace_approximation(data: Measurements, fit, *, draws: int = 2000, seed: i
     # One transform call for the draws, the median and the four interval ends.
     points = np.concatenate([unit_draws, center[None, :5]]
                             + [clipped[n][:5].T for n in INTERVALS])
-    mapped = np.asarray(_from_unit(jnp.asarray(points), post.bounds))
+    mapped = physical(points, post)
     samples, median, ci = mapped[:draws], mapped[draws], mapped[draws + 1:].reshape(2, 2, 5)
     noise = noise_summary(post)
     if post.ndim > 5:
@@ -147,9 +148,6 @@ def laplace_approximation(data: Measurements, fit, *, draws: int = 2000, seed: i
         samples=samples, noise=noise, center=center, center_covariance=covariance,
         diagnostics={"condition_number": condition, "points": int(post.target.shape[0])},
         timings={"total": time.perf_counter() - tic}, bounds=post.bounds)
-
-
-_from_unit = jax.jit(from_unit)
 
 
 def find_mode(post: Posterior, start, max_steps: int = 100) -> np.ndarray:
