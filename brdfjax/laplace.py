@@ -77,7 +77,7 @@ NOISE_ROUNDS = 2
 
 
 def laplace_approximation(data: Measurements, fit, *, draws: int = 2000, seed: int = 0,
-                          max_steps: int = 100, condition_limit: float = CONDITION_LIMIT,
+                          max_steps: int = 1000, condition_limit: float = CONDITION_LIMIT,
                           bounds: Bounds | None = None,
                           constants: ShadowingConstants = PAPER_CONSTANTS,
                           validate_incidences=None) -> UncertaintyResult:
@@ -95,7 +95,8 @@ def laplace_approximation(data: Measurements, fit, *, draws: int = 2000, seed: i
         draws: parameter draws kept in ``samples`` (for bands): from the Gaussian truncated
             to the bounds, where the prior is zero.
         seed: seeds the draws.
-        max_steps: Levenberg-Marquardt step cap when polishing to the mode.
+        max_steps: Levenberg-Marquardt step cap when polishing to the mode (the fit's
+            default, so that `brdfjax.fit` with ``lm`` and this share one compiled LM).
         condition_limit: largest acceptable condition number (see `CONDITION_LIMIT`).
         bounds, constants, validate_incidences: as for `brdfjax.fit.fit` when ``fit`` is
             bare parameters.
@@ -150,7 +151,7 @@ def laplace_approximation(data: Measurements, fit, *, draws: int = 2000, seed: i
         timings={"total": time.perf_counter() - tic}, bounds=post.bounds)
 
 
-def find_mode(post: Posterior, start, max_steps: int = 100) -> np.ndarray:
+def find_mode(post: Posterior, start, max_steps: int = 1000) -> np.ndarray:
     """The posterior mode in sampling coordinates (ndim,), polished from ``start`` (5,).
 
     Levenberg-Marquardt on ``(m - y) / sqrt(v)``; for the noise model, alternated with the

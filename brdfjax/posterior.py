@@ -462,7 +462,7 @@ def sample_posterior(data: Measurements, fit, *, walkers: int = 32, max_steps: i
         An `UncertaintyResult` with method ``mcmc``.
     """
     import emcee
-    from tqdm.auto import tqdm
+    from tqdm import tqdm
 
     post, _ = training_setup(data, fit, bounds, constants, validate_incidences)
     if walkers < 2 * post.ndim:
