@@ -89,3 +89,10 @@ def test_demo_reproduces_the_papers_white_paint(tmp_path, capsys):
     assert "polyimide" in out and "not energy-conserving" in out
     assert "E (held out)" in out and "status converged" in out
     assert (tmp_path / "demo_fit.png").exists() and (tmp_path / "demo_hemisphere.png").exists()
+
+
+def test_fit_summary_flags_a_fit_that_creates_energy(capsys):
+    assert main(["fit", str(DATA / "synthetic" / "polyimide.csv"), "--uncertainty", "none"]) == 0
+    out = capsys.readouterr().out
+    assert "reflectance rho(0, 30, 60 deg) = 7.6" in out
+    assert "warning: reflectance up to 7.6" in out and "not physical" in out

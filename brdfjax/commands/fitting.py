@@ -13,6 +13,8 @@ DATA = Path(__file__).resolve().parents[2] / "data"
 UNCERTAINTY_METHODS = ("none", "laplace", "mcmc")
 # Incidences (deg) of the reflectance intervals written to --json.
 REFLECTANCE_INCIDENCES = tuple(range(0, 90, 10))
+# Incidences (deg) of the reflectance line of the printed summary.
+SUMMARY_INCIDENCES = (0.0, 30.0, 60.0)
 
 
 def register(subparsers) -> None:
@@ -193,8 +195,9 @@ def write_outputs(result, data, args, uncertainty=None) -> None:
 
 
 def summary(result, name: str) -> str:
-    """A readable table of a `brdfjax.fit.FitResult`."""
+    """A readable table of a `brdfjax.fit.FitResult`, with the reflectance of Eq. (9)."""
     from brdfjax.model import PARAMETER_NAMES
+    from brdfjax.reflectance import energy_warning, reflectance
 
     lines = [f"{name}: {result.method} fit, status {result.status}"]
     lines += [f"  {k:>3} = {v:14.6g}" + ("   (at a bound)" if k in result.at_bounds else "")
@@ -207,6 +210,13 @@ def summary(result, name: str) -> str:
         lines.append(f"  held out: E = {100 * result.validation_error:.4g} %")
         for deg, e in result.validation_by_incidence.items():
             lines.append(f"        {deg:6g} deg: E = {100 * e:.4g} %")
+    rho = np.asarray(reflectance(result.params, np.radians(SUMMARY_INCIDENCES),
+                                 constants=result.constants))
+    lines.append("  reflectance rho(" + ", ".join(f"{x:g}" for x in SUMMARY_INCIDENCES)
+                 + " deg) = " + ", ".join(f"{r:.4f}" for r in rho))
+    warning = energy_warning(rho)
+    if warning:
+        lines.append(f"  warning: {warning}")
     times = ", ".join(f"{k} {v * 1e3:.0f} ms" for k, v in result.timings.items())
     lines.append(f"  {result.evaluations} model evaluations; {times}")
     if result.at_bounds:
