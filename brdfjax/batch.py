@@ -21,10 +21,13 @@ distinct good members), but as one compiled call per chunk of samples:
    batched fit follows the same search as the single fit of the same sample and ends at the
    same E (to 1e-9 relative, tested; rounding in the longer padded sums is the only
    difference).
-5. The genetic search is vmapped over samples. A vmapped LM costs as much as its slowest
-   lane (``FIELD-NOTES.md``), so the LM stage runs ``lm_batch`` samples at a time under
-   ``lax.map`` (each sample's starts still vmapped); ``lm_batch=None`` vmaps the whole
-   chunk. The default was the fastest on a 2-core CPU (``BENCHMARKS.md``, section batch).
+5. Each stage runs its samples ``search_batch`` (genetic search) or ``polish_batch``
+   (Levenberg-Marquardt) at a time side by side under ``vmap``, such groups one after
+   another under ``lax.map`` (`across_samples`); ``None`` vmaps the whole chunk. A vmapped
+   loop runs as long as its slowest lane (an LM that needs 700 steps holds up every sample
+   beside it, ``FIELD-NOTES.md``), and on a CPU even the genetic search was slower vmapped
+   over many samples than mapped; the defaults are the fastest measured on a 2-core CPU
+   (``BENCHMARKS.md``, section batch). On a GPU, try ``None`` for both.
 6. The sample axis is sharded over the local devices (``NamedSharding`` on a 1-D mesh with
    an ``Auto`` axis, see ``FIELD-NOTES.md``); plain ``jit`` partitions the work. On a CPU,
    ``XLA_FLAGS=--xla_force_host_platform_device_count=N`` (or ``jax_num_cpu_devices``)
@@ -33,6 +36,7 @@ distinct good members), but as one compiled call per chunk of samples:
 
 from __future__ import annotations
 
+import hashlib
 import inspect
 import time
 from collections.abc import Sequence
@@ -59,14 +63,16 @@ POINT_BUCKET = 64
 FIT_DEFAULTS = {name: inspect.signature(fit).parameters[name].default
                 for name in ("starts", "population_size", "max_generations", "max_steps",
                              "config", "constants")}
-# The LM stage runs this many samples at once (lax.map batch_size); measured fastest on
-# a 2-core CPU among 1, 4, 16 and the whole chunk (BENCHMARKS.md, section batch).
-LM_BATCH = 1
+# Samples side by side in the genetic search and in the LM polish (`across_samples`): the
+# fastest on a 2-core CPU among 1, 4, 16 and the whole chunk (BENCHMARKS.md, section batch).
+SEARCH_BATCH = 1
+POLISH_BATCH = 1
 
 
 def fit_batch(samples: Sequence[Measurements], *, seed: int | Sequence[int] = 0,
               bounds: Bounds | None = None, chunk_size: int = 256,
-              lm_batch: int | None = LM_BATCH, devices=None, **options) -> list[FitResult]:
+              search_batch: int | None = SEARCH_BATCH, polish_batch: int | None = POLISH_BATCH,
+              devices=None, **options) -> list[FitResult]:
     """Fit the five-parameter model to every sample of a batch, one compiled call per chunk.
 
     Each sample gets the fit that ``brdfjax.fit(sample, seed=seed)`` gives it (hybrid
@@ -81,7 +87,8 @@ def fit_batch(samples: Sequence[Measurements], *, seed: int | Sequence[int] = 0,
         bounds: the search box (`brdfjax.bounds.default_bounds` if None).
         chunk_size: at most this many samples per compiled call; bounds the memory (about
             ``chunk_size * points * starts * 5 * 8`` bytes of Jacobians).
-        lm_batch: samples whose LMs run together under ``vmap``; None for the whole chunk.
+        search_batch, polish_batch: samples side by side under ``vmap`` in the genetic
+            search and in the LM polish (`across_samples`); None for the whole chunk.
         devices: the devices to shard the sample axis over (default: ``jax.devices()``).
         **options: ``starts``, ``population_size``, ``max_generations``, ``max_steps``,
             ``config``, ``constants``: as in `brdfjax.fit.fit`, with its defaults
@@ -101,28 +108,30 @@ def fit_batch(samples: Sequence[Measurements], *, seed: int | Sequence[int] = 0,
     bounds = default_bounds() if bounds is None else bounds
     mesh = jax.make_mesh((len(devices or jax.devices()),), ("samples",),
                          axis_types=(jax.sharding.AxisType.Auto,), devices=devices)
-    settings = {**options, "lm_batch": lm_batch}
+    settings = {**options, "search_batch": search_batch, "polish_batch": polish_batch}
     results: list[FitResult | None] = [None] * len(samples)
-    prepared = {}
-    scenes = {}
-    for index, data in enumerate(samples):
-        try:
-            validate(data, path=data.name)
-            geometry = _geometry_key(data)
-            if geometry not in scenes:
-                scenes[geometry] = prepare(data, constants)
-            prepared[index] = (geometry, problem(data, constants, geometry=scenes[geometry]))
-        except (DataError, ValueError) as error:
-            results[index] = _failed(data, str(error), bounds, constants)
-    # Stable sort by geometry, so samples sharing one land in the same chunks.
-    first_seen = {key: rank for rank, key in enumerate(dict.fromkeys(g for g, _ in
-                                                                        prepared.values()))}
-    order = sorted(prepared, key=lambda i: first_seen[prepared[i][0]])
+    # Stable sort by geometry, so that samples sharing one land in the same chunks.
+    keys = [_geometry_key(data) for data in samples]
+    rank = {key: number for number, key in enumerate(dict.fromkeys(keys))}
+    order = sorted(range(len(samples)), key=lambda i: rank[keys[i]])
     for begin in range(0, len(order), chunk_size):
-        chunk = order[begin:begin + chunk_size]
+        # Problems are prepared chunk by chunk, so host and device memory stay bounded.
+        problems, scenes = {}, {}
+        for index in order[begin:begin + chunk_size]:
+            data = samples[index]
+            try:
+                validate(data, path=data.name)
+                if keys[index] not in scenes:
+                    scenes[keys[index]] = prepare(data, constants)
+                problems[index] = problem(data, constants, geometry=scenes[keys[index]])
+            except (DataError, ValueError) as error:
+                results[index] = _failed(data, str(error), bounds, constants)
+        if not problems:
+            continue
+        chunk = list(problems)
         tic = time.perf_counter()
-        searched, polished = _run_chunk([prepared[i][1] for i in chunk], seeds[chunk],
-                                        bounds, config, mesh, chunk_size, settings)
+        searched, polished = _run_chunk(list(problems.values()), seeds[chunk], bounds,
+                                        config, mesh, chunk_size, settings)
         share = (time.perf_counter() - tic) / len(chunk)
         for lane, index in enumerate(chunk):
             results[index] = _sample_result(
@@ -132,9 +141,11 @@ def fit_batch(samples: Sequence[Measurements], *, seed: int | Sequence[int] = 0,
 
 
 def _geometry_key(data: Measurements) -> bytes:
-    """A key equal for measurement sets with identical angle arrays."""
-    return b"".join(np.ascontiguousarray(x, dtype=float).tobytes() + b"|"
-                    for x in (data.theta_i, data.theta_r, data.phi_r))
+    """A digest equal for measurement sets with identical angle arrays."""
+    digest = hashlib.sha256()
+    for angles in (data.theta_i, data.theta_r, data.phi_r):
+        digest.update(np.ascontiguousarray(angles, dtype=float).tobytes() + b"|")
+    return digest.digest()
 
 
 def _lane(batched, lane: int):
@@ -206,10 +217,11 @@ def _pad(values, length: int, fill=None) -> np.ndarray:
 
 
 @partial(jax.jit, static_argnames=("population_size", "max_generations", "starts",
-                                   "max_steps", "lm_batch", "groups"))
+                                   "max_steps", "search_batch", "polish_batch", "groups"))
 def _fit_chunk(seeds, scene: Scene, target, weight, bounds: Bounds, config: EvolveConfig, *,
                population_size: int, max_generations: int, starts: int, max_steps: int,
-               lm_batch: int | None, groups: int) -> tuple[EvolveResult, PolishResult]:
+               search_batch: int | None, polish_batch: int | None,
+               groups: int) -> tuple[EvolveResult, PolishResult]:
     """The hybrid fit of a padded chunk in one compiled call.
 
     Args:
@@ -218,41 +230,59 @@ def _fit_chunk(seeds, scene: Scene, target, weight, bounds: Bounds, config: Evol
         target, weight: the `Problem` arrays of each sample, (B, P); weight 0 on padding.
         bounds, config: the search box and the genetic-search rates.
         population_size, max_generations, starts, max_steps: as in `fit`.
-        lm_batch: samples polished together (``lax.map`` batch size), None for all.
-        groups: the number of devices; ``lax.map`` runs within each device's samples.
+        search_batch, polish_batch: samples run side by side in each stage (see
+            `across_samples`).
+        groups: the number of devices the sample axis is sharded over.
 
     Returns:
         The batched `EvolveResult` and `PolishResult`, leading axis B.
     """
-    scene_axis = None if scene.cos_alpha.ndim == 1 else 0
 
-    def search(seed, scene, target, weight):
+    def search(scene, seed, target, weight):
         return evolve(jax.random.key(seed), Problem(scene, target, weight), bounds, config,
                       population_size=population_size, max_generations=max_generations)
 
-    searched = jax.vmap(search, in_axes=(0, scene_axis, 0, 0))(seeds, scene, target, weight)
-
-    def refine(population, scene, target, weight):
+    def refine(scene, population, target, weight):
         return polish_population(population, Problem(scene, target, weight), bounds,
                                  starts=starts, max_steps=max_steps)
 
-    if lm_batch is None:
-        polished = jax.vmap(refine, in_axes=(0, scene_axis, 0, 0))(
-            searched.population, scene, target, weight)
-    else:
-        # (B, ...) -> (groups, B / groups, ...): vmap over the devices' blocks, and a
-        # sequential map within each block, so the map never crosses the sharded axis.
-        def blocks(x):
-            return x.reshape((groups, -1) + x.shape[1:])
-
-        def within(lanes):
-            population, target, weight, own_scene = lanes
-            return jax.lax.map(lambda one: refine(one[0], scene if own_scene is None
-                                                  else one[3], one[1], one[2]),
-                               (population, target, weight, own_scene), batch_size=lm_batch)
-
-        per_sample_scene = None if scene_axis is None else jax.tree.map(blocks, scene)
-        polished = jax.vmap(within)((blocks(searched.population), blocks(target),
-                                     blocks(weight), per_sample_scene))
-        polished = jax.tree.map(lambda x: x.reshape((-1,) + x.shape[2:]), polished)
+    searched = across_samples(search, scene, (seeds, target, weight), search_batch, groups)
+    polished = across_samples(refine, scene, (searched.population, target, weight),
+                              polish_batch, groups)
     return searched, polished
+
+
+def across_samples(function, scene: Scene, arrays: tuple, batch: int | None, groups: int):
+    """``function(scene, *arrays[i])`` for every sample i, ``batch`` samples side by side.
+
+    ``batch`` samples run together under ``vmap``, such groups one after another under
+    ``lax.map``; ``None`` vmaps them all at once. Under ``vmap`` a loop runs as long as its
+    slowest lane, so on a CPU small groups can be faster (``BENCHMARKS.md``). The sample
+    axis is first cut into ``groups`` blocks, one per device, vmapped over, so that the
+    sequential map runs within each device's samples and never across the sharded axis.
+
+    Args:
+        function: ``(scene, *per-sample arrays) -> pytree`` for one sample.
+        scene: a `Scene` shared by all samples (arrays (P,)) or one per sample ((B, P)).
+        arrays: per-sample arrays, leading axis B (a multiple of ``groups``).
+        batch: samples per vmapped group, or None for all.
+        groups: blocks of the sample axis (the device count).
+
+    Returns:
+        The stacked outputs, leading axis B.
+    """
+    shared = scene.cos_alpha.ndim == 1
+    if batch is None:
+        return jax.vmap(function, in_axes=(None if shared else 0,) + (0,) * len(arrays))(
+            scene, *arrays)
+    mapped = arrays if shared else (scene, *arrays)
+
+    def one(item):
+        return function(scene, *item) if shared else function(*item)
+
+    def blocks(x):
+        return x.reshape((groups, -1) + x.shape[1:])
+
+    out = jax.vmap(lambda block: jax.lax.map(one, block, batch_size=batch))(
+        jax.tree.map(blocks, mapped))
+    return jax.tree.map(lambda x: x.reshape((-1,) + x.shape[2:]), out)

@@ -149,8 +149,10 @@ def run_batch(args) -> int:
     unread = {}
 
     def record(batch: dict) -> None:
-        """Save a chunk's results and the unreadable files met so far (JSON first, so a
-        listed row always has its JSON)."""
+        """Save a chunk's results and the unreadable files met so far.
+
+        The JSON files are written before the CSV, so a file listed there has its JSON.
+        """
         batch = {**unread, **batch}
         unread.clear()
         if args.json:
