@@ -380,6 +380,28 @@ def snooker_move(gamma: float = 1.7):
     return SnookerMove()
 
 
+def ensemble_sampler(walkers: int, ndim: int, log_probability, **options):
+    """emcee's ``EnsembleSampler(vectorize=True)``, taking the log-probability array as it is.
+
+    For a vectorised log-probability emcee looks for blobs and converts the result walker by
+    walker in Python, about 50 us per call with 16 walkers, 10 % of a run here. This
+    subclass checks the coordinates and the result as emcee does (no infinite or NaN
+    coordinate, no NaN log-probability) and returns the array; it supports no blobs.
+    """
+    import emcee
+
+    class VectorizedSampler(emcee.EnsembleSampler):
+        def compute_log_prob(self, coords):
+            if not np.all(np.isfinite(coords)):
+                raise ValueError("a walker has an infinite or NaN coordinate")
+            log_prob = np.array(self.log_prob_fn(coords), dtype=float)  # emcee writes to it
+            if np.any(np.isnan(log_prob)):
+                raise ValueError("the log-probability is NaN")
+            return log_prob, None
+
+    return VectorizedSampler(walkers, ndim, log_probability, vectorize=True, **options)
+
+
 def draw_inside(rng: np.random.Generator, mean, covariance, lower, upper, count: int,
                 rounds: int = 100) -> np.ndarray:
     """Draws (count, D) from a Gaussian truncated to the box [lower, upper], by rejection.
@@ -483,9 +505,8 @@ def sample_posterior(data: Measurements, fit, *, walkers: int = 32, max_steps: i
     def log_probability(x):
         return np.asarray(log_posterior_batch(x, post))
 
-    sampler = emcee.EnsembleSampler(
-        walkers, post.ndim, log_probability, vectorize=True, backend=backend,
-        moves=[(emcee.moves.DEMove(), 0.8), (snooker_move(), 0.2)])
+    sampler = ensemble_sampler(walkers, post.ndim, log_probability, backend=backend,
+                               moves=[(emcee.moves.DEMove(), 0.8), (snooker_move(), 0.2)])
     if resume:
         state = sampler.get_last_sample()
     else:
