@@ -34,7 +34,7 @@ from benchmarks.report import write_section
 from brdfjax.bounds import default_bounds
 from brdfjax.compare import compare, format_table, scipy_de_ls
 from brdfjax.evolve import population_errors
-from brdfjax.fit import fit
+from brdfjax.fitting import fit
 from brdfjax.formats import load
 from brdfjax.model import PAPER_SAMPLES
 from brdfjax.objective import problem

@@ -34,7 +34,7 @@ import numpy as np
 
 from benchmarks.report import write_section
 from brdfjax.bands import curve_bands
-from brdfjax.fit import fit
+from brdfjax.fitting import fit
 from brdfjax.formats import load
 from brdfjax.laplace import laplace_approximation
 from brdfjax.model import PAPER_SAMPLES, PARAMETER_NAMES, projected_brdf

@@ -18,10 +18,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from brdfjax.geometry import PAPER_CONSTANTS, ShadowingConstants, scene
+from brdfjax.hemispherical import reflectance
 from brdfjax.model import evaluate_projected
 from brdfjax.plot import curve_angles
 from brdfjax.posterior import INTERVALS
-from brdfjax.reflectance import reflectance
 
 # Draws used per band. 2000 give the 2.5 % and 97.5 % quantiles to a few per cent of the
 # band width; a fixed count also keeps the compiled evaluation from being rebuilt for every

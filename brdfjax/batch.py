@@ -1,6 +1,6 @@
 """Fitting many measurement sets at once: the hybrid fit of `brdfjax.fit` over a batch.
 
-`fit_batch` runs, for every sample of a catalogue, exactly the fit that `brdfjax.fit.fit`
+`fit_batch` runs, for every sample of a catalogue, exactly the fit that `brdfjax.fitting.fit`
 runs with the ``hybrid`` method (genetic search, then screened Levenberg-Marquardt from
 distinct good members), but as one compiled call per chunk of samples:
 
@@ -17,7 +17,7 @@ distinct good members), but as one compiled call per chunk of samples:
    sample count to a power of two (at most ``chunk_size``) and a multiple of the device
    count, with copies of its first sample whose results are dropped. Compilations are so
    bounded to one per (sample bucket, point bucket, shared geometry or not).
-4. Every sample is keyed by ``jax.random.key(seed)`` as `brdfjax.fit.fit` keys it, so a
+4. Every sample is keyed by ``jax.random.key(seed)`` as `brdfjax.fitting.fit` keys it, so a
    batched fit follows the same search as the single fit of the same sample and ends at the
    same E (to 1e-9 relative, tested; rounding in the longer padded sums is the only
    difference).
@@ -48,7 +48,7 @@ from jax.sharding import NamedSharding, PartitionSpec
 
 from brdfjax.bounds import Bounds, default_bounds
 from brdfjax.evolve import EvolveConfig, EvolveResult, evolve
-from brdfjax.fit import FitResult, _result, fit, polish_summary, search_summary
+from brdfjax.fitting import FitResult, _result, fit, polish_summary, search_summary
 from brdfjax.geometry import Scene, ShadowingConstants
 from brdfjax.measurements import DataError, Measurements, validate
 from brdfjax.model import Params
@@ -59,7 +59,7 @@ from brdfjax.polish import PolishResult, polish_population
 # bucket, and at most 63 zero-weight points are carried (9 % extra work at 716 points).
 POINT_BUCKET = 64
 # The single fit's own defaults, read from its signature: a batched fit is the fit that
-# `brdfjax.fit.fit` gives each sample, whatever those defaults become.
+# `brdfjax.fitting.fit` gives each sample, whatever those defaults become.
 FIT_DEFAULTS = {name: inspect.signature(fit).parameters[name].default
                 for name in ("starts", "population_size", "max_generations", "max_steps",
                              "config", "constants")}
@@ -91,7 +91,7 @@ def fit_batch(samples: Sequence[Measurements], *, seed: int | Sequence[int] = 0,
             search and in the LM polish (`across_samples`); None for the whole chunk.
         devices: the devices to shard the sample axis over (default: ``jax.devices()``).
         **options: ``starts``, ``population_size``, ``max_generations``, ``max_steps``,
-            ``config``, ``constants``: as in `brdfjax.fit.fit`, with its defaults
+            ``config``, ``constants``: as in `brdfjax.fitting.fit`, with its defaults
             (`FIT_DEFAULTS`).
 
     Returns:

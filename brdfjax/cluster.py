@@ -34,7 +34,7 @@ def fit_chunk(samples: list, options: dict) -> list[dict]:
             ``"laplace"`` adds `brdfjax.laplace.laplace_approximation` to each result.
 
     Returns:
-        One `brdfjax.fit.FitResult.to_dict` per sample, in order; with ``uncertainty``, a
+        One `brdfjax.fitting.FitResult.to_dict` per sample, in order; with ``uncertainty``, a
         ``"std"`` entry of standard deviations by parameter name and the approximation's
         ``"uncertainty_status"``.
     """

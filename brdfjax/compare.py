@@ -24,7 +24,7 @@ import jax
 import numpy as np
 
 from brdfjax.bounds import default_bounds, from_unit
-from brdfjax.fit import fit
+from brdfjax.fitting import fit
 from brdfjax.objective import error, problem, residuals
 
 

@@ -90,7 +90,7 @@ def laplace_approximation(data: Measurements, fit, *, draws: int = 2000, seed: i
 
     Args:
         data: all measurements.
-        fit: a `brdfjax.fit.FitResult`, or parameters (5,) ordered kb, kr, a, b, kd
+        fit: a `brdfjax.fitting.FitResult`, or parameters (5,) ordered kb, kr, a, b, kd
             (see `brdfjax.posterior.training_setup`).
         draws: parameter draws kept in ``samples`` (for bands): from the Gaussian truncated
             to the bounds, where the prior is zero.
@@ -98,7 +98,7 @@ def laplace_approximation(data: Measurements, fit, *, draws: int = 2000, seed: i
         max_steps: Levenberg-Marquardt step cap when polishing to the mode (the fit's
             default, so that `brdfjax.fit` with ``lm`` and this share one compiled LM).
         condition_limit: largest acceptable condition number (see `CONDITION_LIMIT`).
-        bounds, constants, validate_incidences: as for `brdfjax.fit.fit` when ``fit`` is
+        bounds, constants, validate_incidences: as for `brdfjax.fitting.fit` when ``fit`` is
             bare parameters.
 
     Returns:

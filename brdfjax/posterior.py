@@ -145,15 +145,15 @@ def training_setup(data: Measurements, fit, bounds: Bounds | None = None,
 
     Args:
         data: all measurements.
-        fit: a `brdfjax.fit.FitResult` (its bounds, constants and held-out incidences are
+        fit: a `brdfjax.fitting.FitResult` (its bounds, constants and held-out incidences are
             used, and the arguments below ignored) or parameters (5,) ordered kb, kr, a, b, kd.
-        bounds, constants, validate_incidences: as for `brdfjax.fit.fit`, when ``fit`` is
+        bounds, constants, validate_incidences: as for `brdfjax.fitting.fit`, when ``fit`` is
             bare parameters.
 
     Returns:
         The `Posterior` of the training points and the starting parameters (5,).
     """
-    from brdfjax.fit import FitResult, split
+    from brdfjax.fitting import FitResult, split
 
     if isinstance(fit, FitResult):
         bounds, constants = fit.bounds, fit.constants
@@ -467,7 +467,7 @@ def sample_posterior(data: Measurements, fit, *, walkers: int = 32, max_steps: i
 
     Args:
         data: all measurements.
-        fit: a `brdfjax.fit.FitResult`, or parameters (5,) (see `training_setup`).
+        fit: a `brdfjax.fitting.FitResult`, or parameters (5,) (see `training_setup`).
         walkers: ensemble size (at least twice the number of sampled coordinates).
         max_steps: cap on the chain length (a resumed chain counts its stored steps).
         check_every: steps between convergence checks.

@@ -21,7 +21,7 @@ from conftest import DATA, REPO
 from brdfjax.batch import fit_batch
 from brdfjax.cluster import fit_chunk
 from brdfjax.commands.batch import expand
-from brdfjax.fit import fit
+from brdfjax.fitting import fit
 from brdfjax.formats import load, save
 from brdfjax.measurements import Measurements
 from brdfjax.model import PAPER_SAMPLES

@@ -2,15 +2,15 @@
 
 import numpy as np
 import pytest
+from transcription import brdf as transcribed
 
 from brdfjax.bounds import default_bounds, from_free, make_bounds, to_free, to_unit
 from brdfjax.evolve import evolve
-from brdfjax.fit import fit
+from brdfjax.fitting import fit
 from brdfjax.model import PAPER_SAMPLES
 from brdfjax.objective import _scene
 from brdfjax.polish import polish, polish_population
 from brdfjax.synthetic import paper_sample
-from transcription import brdf as transcribed
 
 
 @pytest.fixture(scope="module")

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
+from brdfjax.hemispherical import energy_warning, reflectance
 from brdfjax.model import PAPER_SAMPLES
-from brdfjax.reflectance import energy_warning, reflectance
 
 INCIDENCES = np.radians([0.0, 30.0, 60.0, 80.0, 90.0])
 

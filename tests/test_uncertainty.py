@@ -16,11 +16,12 @@ from conftest import DATA, REPO
 from scipy.optimize import minimize
 from scipy.stats import norm
 
-import brdfjax.fit
+import brdfjax.fitting
 from brdfjax.bands import curve_bands, reflectance_bands
 from brdfjax.bounds import make_bounds, to_unit
 from brdfjax.cli import main
-from brdfjax.fit import fit, split
+from brdfjax.fitting import fit, split
+from brdfjax.hemispherical import reflectance
 from brdfjax.laplace import estimate_noise, laplace_approximation
 from brdfjax.measurements import Measurements
 from brdfjax.model import PAPER_SAMPLES, PARAMETER_NAMES, projected_brdf
@@ -32,7 +33,6 @@ from brdfjax.posterior import (
     log_posterior_batch,
     sample_posterior,
 )
-from brdfjax.reflectance import reflectance
 from brdfjax.synthetic import paper_sample
 
 TRUTH = np.array(PAPER_SAMPLES["white_paint"], dtype=float)
@@ -325,7 +325,7 @@ def test_reflectance_bands_contain_the_truth(white_mcmc):
 @pytest.fixture
 def fit_once(monkeypatch, white_fit):
     """The CLI's fit replaced by the module's, so CLI tests do not refit."""
-    monkeypatch.setattr(brdfjax.fit, "fit", lambda *args, **kwargs: white_fit)
+    monkeypatch.setattr(brdfjax.fitting, "fit", lambda *args, **kwargs: white_fit)
 
 
 def test_cli_uncertainty_none_does_no_uncertainty_work(fit_once, monkeypatch, tmp_path, capsys):

@@ -110,7 +110,7 @@ def write_results(path, rows: dict, order, columns) -> None:
 
 
 def row(file: str, result: dict, columns) -> dict:
-    """A CSV row from a `brdfjax.fit.FitResult.to_dict` (numbers as exact reprs)."""
+    """A CSV row from a `brdfjax.fitting.FitResult.to_dict` (numbers as exact reprs)."""
     values = {"file": file, **{k: repr(float(v)) for k, v in result["params"].items()},
               "error": repr(float(result["error"])), "status": result["status"],
               "message": result["message"]}

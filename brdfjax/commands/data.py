@@ -54,7 +54,7 @@ def run_eval(args) -> None:
 
 
 def run_reflectance(args) -> None:
-    from brdfjax.reflectance import energy_warning, reflectance
+    from brdfjax.hemispherical import energy_warning, reflectance
 
     rho = np.asarray(reflectance(args.params, np.radians(args.theta_i)))
     print("theta_i,reflectance")

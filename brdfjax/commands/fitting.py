@@ -105,7 +105,7 @@ def run_fit(args) -> None:
     from brdfjax.formats import load
 
     enable_compilation_cache()
-    from brdfjax.fit import fit
+    from brdfjax.fitting import fit
 
     if args.plot_corner and args.uncertainty == "none":
         raise ValueError("--plot-corner needs --uncertainty laplace or mcmc")
@@ -195,9 +195,9 @@ def write_outputs(result, data, args, uncertainty=None) -> None:
 
 
 def summary(result, name: str) -> str:
-    """A readable table of a `brdfjax.fit.FitResult`, with the reflectance of Eq. (9)."""
+    """A readable table of a `brdfjax.fitting.FitResult`, with the reflectance of Eq. (9)."""
+    from brdfjax.hemispherical import energy_warning, reflectance
     from brdfjax.model import PARAMETER_NAMES
-    from brdfjax.reflectance import energy_warning, reflectance
 
     lines = [f"{name}: {result.method} fit, status {result.status}"]
     lines += [f"  {k:>3} = {v:14.6g}" + ("   (at a bound)" if k in result.at_bounds else "")
@@ -229,11 +229,11 @@ def run_demo(args) -> None:
     from brdfjax.cli import enable_compilation_cache
 
     enable_compilation_cache()
-    from brdfjax.fit import fit
+    from brdfjax.fitting import fit
     from brdfjax.formats import load, replace_atomically
+    from brdfjax.hemispherical import energy_warning, reflectance
     from brdfjax.model import PAPER_ERRORS_PERCENT, PAPER_SAMPLES
     from brdfjax.plot import plot_fit, plot_hemisphere
-    from brdfjax.reflectance import energy_warning, reflectance
 
     print("Reflectance rho(theta_i) of Eq. (9) for the paper's parameters")
     print(f"  {'sample':<14} {'0 deg':>8} {'30 deg':>8} {'60 deg':>8}")
