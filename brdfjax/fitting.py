@@ -97,7 +97,7 @@ def split(data: Measurements, validate_incidences=None) -> tuple[Measurements, M
     """Training and held-out subsets by incidence angle (degrees)."""
     if not validate_incidences:
         return data, data.select(np.zeros(len(data), dtype=bool))
-    mask = _incidence_mask(data, validate_incidences)
+    mask = data.incidence_mask(validate_incidences)
     train, held = data.select(~mask), data.select(mask)
     missing = set(np.round(validate_incidences, 6)) - set(held.incidences_deg)
     if missing:
@@ -113,11 +113,6 @@ def split(data: Measurements, validate_incidences=None) -> tuple[Measurements, M
 
 def _degrees(values) -> str:
     return ", ".join(f"{float(x):g}" for x in values)
-
-
-def _incidence_mask(data, degrees):
-    theta = np.degrees(data.theta_i)
-    return np.any(np.abs(theta[:, None] - np.asarray(degrees, float)[None, :]) < 1e-6, axis=1)
 
 
 def fit(data: Measurements, method: str = "hybrid", *, seed: int = 0,
@@ -230,7 +225,7 @@ def _result(data, train, held, vector, bounds, constants, **details) -> FitResul
     geometry = prepare(data, constants)
     model = np.asarray(_projected(vector, geometry))
     target, weight = targets(data)
-    is_held = _incidence_mask(data, held.incidences_deg)
+    is_held = data.incidence_mask(held.incidences_deg)
     theta = np.round(np.degrees(data.theta_i), 6)
 
     def error_on(mask):

@@ -90,9 +90,13 @@ class Measurements:
 
     def at_incidences(self, degrees) -> Measurements:
         """The points whose incidence angle is one of ``degrees`` (to 1e-6 deg)."""
+        return self.select(self.incidence_mask(degrees))
+
+    def incidence_mask(self, degrees) -> np.ndarray:
+        """True at the points whose incidence angle is one of ``degrees`` (to 1e-6 deg)."""
         theta = np.degrees(self.theta_i)
         wanted = np.asarray(degrees, dtype=float).reshape(-1)
-        return self.select(np.any(np.abs(theta[:, None] - wanted[None, :]) < 1e-6, axis=1))
+        return np.any(np.abs(theta[:, None] - wanted[None, :]) < 1e-6, axis=1)
 
     def _arrays(self) -> dict:
         return {k: getattr(self, k)
