@@ -10,13 +10,13 @@ were held out of the fit, and for the directional-hemispherical reflectance of E
 
 from __future__ import annotations
 
-from functools import partial
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from brdfjax.cache import stage
 from brdfjax.geometry import PAPER_CONSTANTS, ShadowingConstants, scene
 from brdfjax.hemispherical import reflectance
 from brdfjax.model import evaluate_projected
@@ -89,7 +89,7 @@ def quantile_bands(values) -> tuple[np.ndarray, ...]:
     return tuple(np.quantile(np.asarray(values), levels, axis=0))
 
 
-@jax.jit
+@stage
 def _curves(samples, geometry) -> jax.Array:
     """``f_r cos(theta_r)`` of every draw (S, 5) on a scene: (S, points)."""
     return jax.vmap(evaluate_projected, in_axes=(0, None))(samples, geometry)
@@ -123,7 +123,7 @@ def curve_bands(samples, incidences_deg, *, count: int = 361, draws: int = CURVE
             for k, deg in enumerate(incidences)}
 
 
-@partial(jax.jit, static_argnames="constants")
+@stage(static_argnames=("constants",))
 def _reflectances(samples, theta_i, constants) -> jax.Array:
     """rho of Eq. (9) for every draw (S, 5) at every incidence (M,): (S, M)."""
     return jax.vmap(lambda params: reflectance(params, theta_i, constants))(samples)

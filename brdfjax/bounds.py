@@ -21,10 +21,9 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
-from brdfjax.model import PARAMETER_NAMES
+from brdfjax.model import PARAMETER_NAMES, array_module
 
 
 class Bounds(NamedTuple):
@@ -62,37 +61,45 @@ def make_bounds(ranges: dict, log_scale=(True, True, True, False, True)) -> Boun
     if np.any(log_scale & (lower <= 0)):
         bad = PARAMETER_NAMES[int(np.argmax(log_scale & (lower <= 0)))]
         raise ValueError(f"{bad} is searched in log10, so its lower bound must be positive")
-    return Bounds(jnp.asarray(lower), jnp.asarray(upper), jnp.asarray(log_scale))
+    return Bounds(lower, upper, log_scale)
 
 
-def _transformed(bounds: Bounds):
-    lower = jnp.where(bounds.log_scale, jnp.log10(jnp.abs(bounds.lower)), bounds.lower)
-    upper = jnp.where(bounds.log_scale, jnp.log10(jnp.abs(bounds.upper)), bounds.upper)
+# The transforms below compute in NumPy when given host arrays (no JAX dispatch: a new
+# process compiles nothing for them) and in JAX when given JAX arrays or tracers.
+
+
+def _transformed(bounds: Bounds, xp):
+    lower = xp.where(bounds.log_scale, xp.log10(xp.abs(bounds.lower)), bounds.lower)
+    upper = xp.where(bounds.log_scale, xp.log10(xp.abs(bounds.upper)), bounds.upper)
     return lower, upper
 
 
 def from_unit(z, bounds: Bounds) -> jax.Array:
     """Physical parameters from unit-cube coordinates z (last axis 5)."""
-    lower, upper = _transformed(bounds)
+    xp = array_module(z, *bounds)
+    lower, upper = _transformed(bounds, xp)
     t = lower + (upper - lower) * z
-    return jnp.where(bounds.log_scale, 10.0**t, t)
+    return xp.where(bounds.log_scale, 10.0**t, t)
 
 
 def to_unit(params, bounds: Bounds) -> jax.Array:
     """Unit-cube coordinates of physical parameters (inverse of `from_unit`)."""
-    lower, upper = _transformed(bounds)
-    params = jnp.asarray(params)
-    t = jnp.where(bounds.log_scale, jnp.log10(jnp.where(bounds.log_scale, jnp.abs(params),
-                                                          1.0)), params)
+    xp = array_module(params, *bounds)
+    lower, upper = _transformed(bounds, xp)
+    params = xp.asarray(params)
+    t = xp.where(bounds.log_scale, xp.log10(xp.where(bounds.log_scale, xp.abs(params), 1.0)),
+                 params)
     return (t - lower) / (upper - lower)
 
 
 def from_free(u, bounds: Bounds) -> jax.Array:
     """Physical parameters from the unconstrained coordinates that LM searches."""
-    return from_unit(jax.nn.sigmoid(u), bounds)
+    xp = array_module(u, *bounds)
+    return from_unit(1 / (1 + xp.exp(-u)), bounds)
 
 
 def to_free(params, bounds: Bounds, margin: float = 1e-9) -> jax.Array:
     """Unconstrained coordinates of physical parameters, clipped just inside the box."""
-    z = jnp.clip(to_unit(params, bounds), margin, 1 - margin)
-    return jnp.log(z) - jnp.log1p(-z)
+    xp = array_module(params, *bounds)
+    z = xp.clip(to_unit(params, bounds), margin, 1 - margin)
+    return xp.log(z) - xp.log1p(-z)

@@ -9,9 +9,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import os
 import sys
-from pathlib import Path
 
 # Each module defines ``register(subparsers)``, adding its commands with a ``run`` default.
 COMMAND_MODULES = (
@@ -32,20 +30,6 @@ def build_parser() -> argparse.ArgumentParser:
     for name in COMMAND_MODULES:
         importlib.import_module(name).register(subparsers)
     return parser
-
-
-def enable_compilation_cache() -> None:
-    """Keep compiled functions on disk so later runs skip XLA compilation.
-
-    The directory is ``$BRDFJAX_CACHE`` or ``~/.cache/brdfjax/jax``; every compilation is
-    kept (JAX's default keeps only those over 1 s, and ours are shorter).
-    """
-    import jax
-
-    directory = os.environ.get("BRDFJAX_CACHE", str(Path.home() / ".cache" / "brdfjax" / "jax"))
-    jax.config.update("jax_compilation_cache_dir", directory)
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
-    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
 
 
 def main(argv=None) -> int:

@@ -90,11 +90,11 @@ def fit_on_cluster(chunks: Iterable[list], scheduler: str,
     except ImportError as missing:
         raise ImportError("--scheduler needs Dask: pip install 'brdfjax[batch]'") from missing
 
-    from brdfjax.cli import enable_compilation_cache
+    from brdfjax.cache import enable
 
     with Client(scheduler, timeout="30s") as client:
         # Workers keep compiled fits on disk, so a restarted worker skips XLA compilation.
-        client.run(enable_compilation_cache)
+        client.run(enable)
         numbers = {}
         for number, chunk in enumerate(chunks):
             numbers[client.submit(fit_chunk, chunk, options, pure=False)] = number

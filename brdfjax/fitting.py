@@ -12,16 +12,14 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 
 from brdfjax.bounds import Bounds, default_bounds, from_unit, to_free, to_unit
 from brdfjax.evolve import EvolveConfig, EvolveResult, evolve
 from brdfjax.geometry import PAPER_CONSTANTS, ShadowingConstants
 from brdfjax.measurements import DataError, Measurements
-from brdfjax.model import PARAMETER_NAMES, Params, evaluate_projected
-from brdfjax.objective import prepare, problem, relative_error, targets
+from brdfjax.model import PARAMETER_NAMES, Params
+from brdfjax.objective import prepare, problem, projected, relative_error, targets
 from brdfjax.polish import PolishResult, polish, polish_population
 
 METHODS = ("hybrid", "ga", "lm")
@@ -143,20 +141,19 @@ def fit(data: Measurements, method: str = "hybrid", *, seed: int = 0,
     bounds = default_bounds() if bounds is None else bounds
     train, held = split(data, validate_incidences)
     prob = problem(train, constants)
-    key = jax.random.key(seed)
     timings, history, evaluations = {}, np.zeros(0), 0
     begin = time.perf_counter()
 
     if method != "lm":
         tic = time.perf_counter()
-        searched = evolve(key, prob, bounds, config, population_size=population_size,
+        searched = evolve(seed, prob, bounds, config, population_size=population_size,
                           max_generations=max_generations)
         searched.errors.block_until_ready()
         timings["evolve"] = time.perf_counter() - tic
         history, evaluations = search_summary(searched, population_size)
 
     if method == "ga":
-        best = from_unit(searched.population[jnp.argmin(searched.errors)], bounds)
+        best = from_unit(np.asarray(searched.population)[np.argmin(searched.errors)], bounds)
         status, steps, success = "search_only", np.zeros(0, int), np.zeros(0, bool)
     else:
         tic = time.perf_counter()
@@ -164,7 +161,7 @@ def fit(data: Measurements, method: str = "hybrid", *, seed: int = 0,
             polished = polish_population(searched.population, prob, bounds, starts=starts,
                                          max_steps=max_steps)
         else:
-            polished = polish(_lm_starts(start, starts, key, bounds, prob.target.dtype), prob,
+            polished = polish(_lm_starts(start, starts, seed, bounds), prob,
                               bounds, max_steps=max_steps)
         polished.errors.block_until_ready()
         timings["polish"] = time.perf_counter() - tic
@@ -205,25 +202,23 @@ def polish_summary(polished: PolishResult) -> tuple[np.ndarray, str, int]:
     errors, steps = np.asarray(polished.errors), np.asarray(polished.steps)
     pick = int(np.argmin(errors))
     status = ("failed" if not np.isfinite(errors[pick]) else
-              "converged" if polished.success[pick] else "max_steps")
-    return np.asarray(polished.params[pick], dtype=float), status, int(np.sum(steps + 1)) * 6
+              "converged" if np.asarray(polished.success)[pick] else "max_steps")
+    return np.asarray(polished.params, dtype=float)[pick], status, int(np.sum(steps + 1)) * 6
 
 
-def _lm_starts(start, count, key, bounds, dtype):
+def _lm_starts(start, count, seed, bounds):
     """Unconstrained LM starts: the given parameters, or ``count`` random points of the box."""
     if start is None:
-        return to_free(from_unit(jax.random.uniform(key, (count, 5), dtype=dtype), bounds),
-                       bounds)
-    return to_free(jnp.atleast_2d(jnp.asarray(start, dtype=dtype)), bounds)
+        unit = np.random.default_rng(seed).uniform(size=(count, 5))
+        return to_free(from_unit(unit, bounds), bounds)
+    return to_free(np.atleast_2d(np.asarray(start, dtype=float)), bounds)
 
-
-_projected = jax.jit(evaluate_projected)
 
 
 def _result(data, train, held, vector, bounds, constants, **details) -> FitResult:
     """A `FitResult`: E overall, per incidence and held out, from one model evaluation."""
     geometry = prepare(data, constants)
-    model = np.asarray(_projected(vector, geometry))
+    model = np.asarray(projected(vector, geometry))
     target, weight = targets(data)
     is_held = data.incidence_mask(held.incidences_deg)
     theta = np.round(np.degrees(data.theta_i), 6)

@@ -14,14 +14,13 @@ and both variables use Gauss-Legendre nodes. The diffuse term integrates exactly
 
 from __future__ import annotations
 
-from functools import partial
-
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from brdfjax.cache import stage
 from brdfjax.geometry import PAPER_CONSTANTS, ShadowingConstants, scene
-from brdfjax.model import as_vector, evaluate
+from brdfjax.model import array_module, as_vector, evaluate
 
 # Node counts: the white-paint and polyimide peaks need about 100 radial nodes for 1e-6;
 # 160 x 96 converges every paper sample to better than 1e-6 at every incidence (see
@@ -38,9 +37,14 @@ def _nodes(count: int, grading: int):
     return u**grading, wu * grading * u ** (grading - 1)
 
 
-@partial(jax.jit, static_argnames=("radial_nodes", "azimuth_nodes", "constants"))
+@stage(static_argnames=("radial_nodes", "azimuth_nodes", "constants"))
 def _reflectance(params, theta_i, radial_nodes, azimuth_nodes, constants):
-    params = as_vector(params)
+    """rho at each incidence of the flat ``theta_i`` (M,)."""
+    return jax.vmap(lambda t: _rho(as_vector(params), t, radial_nodes, azimuth_nodes,
+                                   constants))(theta_i)
+
+
+def _rho(params, theta_i, radial_nodes, azimuth_nodes, constants):
     t, wt = (jnp.asarray(v) for v in _nodes(radial_nodes, GRADING))
     v, wv = (jnp.asarray(x) for x in _nodes(azimuth_nodes, 1))
     psi, w_psi = jnp.pi * v, jnp.pi * wv                # psi in [0, pi]; mirror symmetry
@@ -76,10 +80,10 @@ def reflectance(params, theta_i, constants: ShadowingConstants = PAPER_CONSTANTS
         rho with the shape of ``theta_i``. Values above 1 violate energy conservation:
         see `energy_warning`.
     """
-    theta_i = jnp.asarray(theta_i, dtype=jnp.result_type(float, theta_i))
-    one = partial(_reflectance, radial_nodes=radial_nodes, azimuth_nodes=azimuth_nodes,
-                  constants=constants)
-    flat = jax.vmap(one, in_axes=(None, 0))(as_vector(params), theta_i.reshape(-1))
+    xp = array_module(theta_i)
+    theta_i = xp.asarray(theta_i, dtype=xp.result_type(float, theta_i))
+    flat = _reflectance(params, theta_i.reshape(-1), radial_nodes=radial_nodes,
+                        azimuth_nodes=azimuth_nodes, constants=constants)
     return flat.reshape(theta_i.shape)
 
 

@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import time
 import warnings
-from functools import partial
 from statistics import NormalDist
 
 import jax
@@ -40,6 +39,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from brdfjax.bounds import Bounds, from_unit, to_free, to_unit
+from brdfjax.cache import stage
 from brdfjax.geometry import PAPER_CONSTANTS, ShadowingConstants
 from brdfjax.measurements import Measurements
 from brdfjax.model import PARAMETER_NAMES, evaluate_projected
@@ -107,7 +107,7 @@ def laplace_approximation(data: Measurements, fit, *, draws: int = 2000, seed: i
     tic = time.perf_counter()
     post, start = training_setup(data, fit, bounds, constants, validate_incidences)
     center = find_mode(post, start, max_steps)
-    information, slope = (np.asarray(v) for v in _curvature(jnp.asarray(center), post))
+    information, slope = (np.asarray(v) for v in _curvature(center, post))
     covariance, condition = _invert(information)
     std = np.sqrt(np.diag(covariance))
     ends = {name: center[:, None] + std[:, None] * np.array(
@@ -158,23 +158,20 @@ def find_mode(post: Posterior, start, max_steps: int = 1000) -> np.ndarray:
     maximum-likelihood scales (`estimate_noise`). A polish that does not give a finite
     chi-square keeps the previous parameters.
     """
-    unit = _to_unit(jnp.asarray(start, dtype=float), post.bounds)
-    noise = jnp.zeros(0)
+    unit = to_unit(np.asarray(start, dtype=float), post.bounds)
+    noise = np.zeros(0)
     for _ in range(1 if post.sigma is not None else NOISE_ROUNDS):
         if post.sigma is None:
             noise = estimate_noise(unit, post)
         free, prob = _weighted_problem(unit, noise, post)
         polished = polish(free, prob, post.bounds, max_steps=max_steps)
-        unit = _keep_finite(polished.params[0], polished.errors[0], unit, post.bounds)
+        unit = _keep_finite(polished, unit, post.bounds)
     if post.sigma is None:
         noise = estimate_noise(unit, post)
     return np.concatenate([np.asarray(unit), np.asarray(noise)])
 
 
-_to_unit = jax.jit(to_unit)
-
-
-@jax.jit
+@stage
 def _weighted_problem(unit, noise, post: Posterior) -> tuple[jax.Array, Problem]:
     """LM start (1, 5) and the `Problem` whose residuals are ``(m - y) / sqrt(v)``."""
     params = from_unit(unit, post.bounds)
@@ -184,13 +181,13 @@ def _weighted_problem(unit, noise, post: Posterior) -> tuple[jax.Array, Problem]
             Problem(post.scene, post.target, 1.0 / variance))
 
 
-@jax.jit
-def _keep_finite(params, chi2, unit, bounds: Bounds) -> jax.Array:
-    """Unit coordinates of polished parameters if their chi-square is finite, else ``unit``."""
-    return jnp.where(jnp.isfinite(chi2), to_unit(params, bounds), unit)
+@stage
+def _keep_finite(polished, unit, bounds: Bounds) -> jax.Array:
+    """Unit coordinates of the polished parameters if their chi-square is finite, else ``unit``."""
+    return jnp.where(jnp.isfinite(polished.errors[0]), to_unit(polished.params[0], bounds), unit)
 
 
-@partial(jax.jit, static_argnames="iterations")
+@stage(static_argnames=("iterations",))
 def estimate_noise(unit, post: Posterior, iterations: int = 50) -> jax.Array:
     """Maximum-likelihood noise scales at fixed parameters, as log10 (s_rel, s_abs).
 
@@ -239,7 +236,7 @@ def fisher_information(x, post: Posterior) -> jax.Array:
     return scaled.T @ scaled + 0.5 * jac_log_variance.T @ jac_log_variance
 
 
-@jax.jit
+@stage
 def _curvature(x, post: Posterior) -> tuple[jax.Array, jax.Array]:
     """Fisher information at ``x`` and the slopes dp/dz of the bounds' transform (5,)."""
     slope = jax.jvp(lambda z: from_unit(z, post.bounds), (x[:5],), (jnp.ones(5),))[1]

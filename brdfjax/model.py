@@ -18,6 +18,7 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from brdfjax.geometry import PAPER_CONSTANTS, Scene, ShadowingConstants, scene
 
@@ -43,7 +44,8 @@ class Params(NamedTuple):
 
     def vector(self) -> jax.Array:
         """The parameters stacked on a last axis of length 5."""
-        return jnp.stack([jnp.asarray(x) for x in self], axis=-1)
+        xp = array_module(*self)
+        return xp.stack([xp.asarray(x) for x in self], axis=-1)
 
 
 # The paper's fitted parameters (Section 4), at 1.06 um, and its error E in percent.
@@ -61,7 +63,16 @@ PAPER_ERRORS_PERCENT = {"white_paint": 4.17, "cement": 5.98, "khaki_paint": 0.69
 def as_vector(params) -> jax.Array:
     if isinstance(params, Params):
         return params.vector()
-    return jnp.asarray(params)
+    return array_module(params).asarray(params)
+
+
+def array_module(*values):
+    """``jax.numpy`` if any value holds a JAX array (or tracer), else ``numpy``.
+
+    Host-side bookkeeping (a parameter vector, a bounds transform) then runs in NumPy: in a
+    new process every JAX operation outside a compiled stage costs a compilation.
+    """
+    return jnp if any(isinstance(v, jax.Array) for v in jax.tree.leaves(values)) else np
 
 
 def evaluate(params, geometry: Scene) -> jax.Array:

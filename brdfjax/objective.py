@@ -18,6 +18,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from brdfjax.cache import stage
 from brdfjax.geometry import PAPER_CONSTANTS, Scene, ShadowingConstants, scene
 from brdfjax.measurements import Measurements
 from brdfjax.model import evaluate_projected
@@ -37,7 +38,7 @@ class Problem(NamedTuple):
     weight: jax.Array
 
 
-_scene = jax.jit(scene, static_argnames=("constants", "in_plane"))
+_scene = stage(scene, static_argnames=("constants", "in_plane"))
 
 
 def prepare(data: Measurements, constants: ShadowingConstants = PAPER_CONSTANTS,
@@ -45,6 +46,10 @@ def prepare(data: Measurements, constants: ShadowingConstants = PAPER_CONSTANTS,
     """The scene of a measurement set (one compiled call; in-plane data take the fast path)."""
     angles = (np.asarray(x, dtype=dtype) for x in (data.theta_i, data.theta_r, data.phi_r))
     return _scene(*angles, constants=constants, in_plane=data.in_plane)
+
+
+projected = stage(evaluate_projected)
+projected.__doc__ = "`brdfjax.model.evaluate_projected` as one compiled stage (host calls)."
 
 
 def targets(data: Measurements) -> tuple[np.ndarray, np.ndarray]:

@@ -11,15 +11,13 @@ when the batch is sharded over several CPU devices (``FIELD-NOTES.md``).
 
 from __future__ import annotations
 
-from functools import partial
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
-import lineax as lx
-import optimistix as optx
 
 from brdfjax.bounds import Bounds, from_free, from_unit, to_free
+from brdfjax.cache import stage
 from brdfjax.objective import Problem, error, residuals
 
 # Relative and absolute step tolerances: float64 meets 1e-10 (noise-free data reach
@@ -52,6 +50,9 @@ def _free_residuals(u, args):
 
 def _levenberg_marquardt(starts, prob, bounds, max_steps):
     """LM from each row of ``starts`` under vmap, every lane with its own status."""
+    import lineax as lx  # imported only when traced: a cached stage runs without them
+    import optimistix as optx
+
     tol = TOLERANCE[jnp.dtype(starts.dtype)]
     solver = optx.LevenbergMarquardt(rtol=tol, atol=tol, linear_solver=lx.Normal(lx.Cholesky()))
 
@@ -67,7 +68,7 @@ def _levenberg_marquardt(starts, prob, bounds, max_steps):
     return PolishResult(*jax.vmap(one)(starts))
 
 
-@partial(jax.jit, static_argnames=("max_steps", "screen_steps", "keep"))
+@stage(static_argnames=("max_steps", "screen_steps", "keep"))
 def polish(starts, prob: Problem, bounds: Bounds, *, max_steps: int = 1000,
            screen_steps: int = 40, keep: int = 3) -> PolishResult:
     """Levenberg-Marquardt from many starts, screened, then run to convergence.
@@ -93,7 +94,7 @@ def polish(starts, prob: Problem, bounds: Bounds, *, max_steps: int = 1000,
     return final._replace(steps=final.steps + screened.steps[best])
 
 
-@partial(jax.jit, static_argnames=("starts", "islands", "max_steps", "screen_steps", "keep"))
+@stage(static_argnames=("starts", "islands", "max_steps", "screen_steps", "keep"))
 def polish_population(population, prob: Problem, bounds: Bounds, *, starts: int = 16,
                       islands: int = 8, separation: float = 0.1, max_steps: int = 1000,
                       screen_steps: int = 40, keep: int = 3) -> PolishResult:

@@ -43,10 +43,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from brdfjax.bounds import Bounds, default_bounds, from_unit
+from brdfjax.cache import stage
 from brdfjax.geometry import PAPER_CONSTANTS, Scene, ShadowingConstants
 from brdfjax.measurements import Measurements
 from brdfjax.model import PARAMETER_NAMES, evaluate_projected
-from brdfjax.objective import prepare
+from brdfjax.objective import prepare, projected
 
 # Log-uniform prior ranges of the noise model's scales: relative 0.01 % to 100 %; absolute
 # 1e-8 to 1 times the largest measured projected BRDF.
@@ -127,15 +128,14 @@ def build_posterior(data: Measurements, bounds: Bounds | None = None,
     lower, upper = np.zeros(5), np.ones(5)
     sigma = None
     if data.sigma is not None:
-        sigma = jnp.asarray(data.sigma * cos_r)
+        sigma = data.sigma * cos_r
     else:
         scale = max(float(np.max(np.abs(target))), np.finfo(float).tiny)
         lower = np.concatenate([lower, np.log10([RELATIVE_NOISE_RANGE[0],
                                                  ABSOLUTE_NOISE_RANGE[0] * scale])])
         upper = np.concatenate([upper, np.log10([RELATIVE_NOISE_RANGE[1],
                                                  ABSOLUTE_NOISE_RANGE[1] * scale])])
-    return Posterior(prepare(data, constants), jnp.asarray(target), sigma, bounds,
-                     jnp.asarray(lower), jnp.asarray(upper))
+    return Posterior(prepare(data, constants), target, sigma, bounds, lower, upper)
 
 
 def training_setup(data: Measurements, fit, bounds: Bounds | None = None,
@@ -189,16 +189,13 @@ def log_posterior(x, post: Posterior) -> jax.Array:
     return jnp.where(inside & jnp.isfinite(value), value, -jnp.inf)
 
 
-log_posterior_batch = jax.jit(jax.vmap(log_posterior, in_axes=(0, None)))
+log_posterior_batch = stage(jax.vmap(log_posterior, in_axes=(0, None)))
 log_posterior_batch.__doc__ = "`log_posterior` of each row of x (walkers, ndim), jitted."
-
-
-_from_unit = jax.jit(from_unit)
 
 
 def physical(x, post: Posterior) -> np.ndarray:
     """Physical parameters (..., 5) from sampling coordinates (..., ndim)."""
-    return np.asarray(_from_unit(jnp.asarray(x)[..., :5], post.bounds))
+    return np.asarray(from_unit(np.asarray(x)[..., :5], post.bounds))
 
 
 def summarize(samples) -> dict:
@@ -224,9 +221,9 @@ def chi2_warning(x, post: Posterior) -> str | None:
     """A sentence when given sigma do not describe the scatter at ``x``, else None."""
     if post.sigma is None:
         return None
-    model = evaluate_projected(from_unit(jnp.asarray(x)[:5], post.bounds), post.scene)
+    model = np.asarray(projected(from_unit(np.asarray(x)[:5], post.bounds), post.scene))
     dof = max(post.target.shape[0] - 5, 1)
-    reduced = float(jnp.sum(((post.target - model) / post.sigma) ** 2)) / dof
+    reduced = float(np.sum(((np.asarray(post.target) - model) / np.asarray(post.sigma)) ** 2)) / dof
     if CHI2_RANGE[0] <= reduced <= CHI2_RANGE[1]:
         return None
     return (f"chi-square per degree of freedom is {reduced:.3g}, not near 1: the data's sigma "

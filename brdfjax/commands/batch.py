@@ -200,10 +200,10 @@ def _fit_chunks(chunks, scheduler, options, record) -> list:
     from brdfjax.cluster import fit_chunk, fit_on_cluster
 
     if scheduler is None:
-        from brdfjax.cli import enable_compilation_cache
+        from brdfjax.cache import enable
 
         devices = _every_core()
-        enable_compilation_cache()
+        enable()
         print(f"fitting on {len(devices)} {devices[0].platform} device(s)", file=sys.stderr)
         for chunk in chunks:
             files, samples = zip(*chunk)

@@ -101,10 +101,10 @@ def held_out(data, args) -> list:
 
 def run_fit(args) -> None:
     from brdfjax.bounds import make_bounds
-    from brdfjax.cli import enable_compilation_cache
+    from brdfjax.cache import enable
     from brdfjax.formats import load
 
-    enable_compilation_cache()
+    enable()
     from brdfjax.fitting import fit
 
     if args.plot_corner and args.uncertainty == "none":
@@ -226,9 +226,9 @@ def summary(result, name: str) -> str:
 
 
 def run_demo(args) -> None:
-    from brdfjax.cli import enable_compilation_cache
+    from brdfjax.cache import enable
 
-    enable_compilation_cache()
+    enable()
     from brdfjax.fitting import fit
     from brdfjax.formats import load, replace_atomically
     from brdfjax.hemispherical import energy_warning, reflectance

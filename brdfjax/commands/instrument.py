@@ -125,9 +125,9 @@ def run_simulate(args) -> None:
     from brdfjax.instrument.simulator import DataSample, Device, Faults, ModelSample, Server
 
     if args.params is not None:
-        from brdfjax.cli import enable_compilation_cache
+        from brdfjax.cache import enable
 
-        enable_compilation_cache()
+        enable()
         sample = ModelSample(args.params)
     else:
         from brdfjax.formats import load

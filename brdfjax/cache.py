@@ -1,0 +1,144 @@
+"""Work that outlives the process: compiled code and traced stages kept on disk.
+
+A new process pays twice before it computes anything: JAX traces the Python of each
+jitted function (seconds for optimistix's Levenberg-Marquardt under ``vmap``), then XLA
+compiles it. JAX's persistent compilation cache saves the second; `stage` saves the
+first. A stage is a jitted function whose traced and lowered form is serialised with
+``jax.export`` the first time it runs on arguments of a given shape; a later process
+loads that form (milliseconds) and compiles it, which the compilation cache turns into a
+lookup. Loading a stage imports neither optimistix nor equinox.
+
+Both caches are off until `enable` is called (the CLI calls it); library calls then use
+plain ``jax.jit``. A stage's file name hashes the function's name, the static
+arguments, the argument shapes and dtypes, the versions of JAX and its libraries, and the
+source of the whole ``brdfjax`` package, so editing any module never reuses a stale stage.
+An unreadable file is traced again and replaced.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import inspect
+import os
+import pickle
+import tempfile
+from importlib import metadata
+from pathlib import Path
+
+import jax
+
+_directory: Path | None = None
+
+
+def enable(directory: str | os.PathLike | None = None) -> Path:
+    """Keep compiled code (``xla/``) and traced stages (``stages/``) under ``directory``.
+
+    The default is ``$BRDFJAX_CACHE``, else ``~/.cache/brdfjax``. Every compilation is
+    kept (JAX's default keeps only those over 1 s, and ours are shorter).
+
+    Returns:
+        The directory used.
+    """
+    global _directory
+    directory = Path(directory or os.environ.get("BRDFJAX_CACHE")
+                     or Path.home() / ".cache" / "brdfjax")
+    jax.config.update("jax_compilation_cache_dir", str(directory / "xla"))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+    _directory = directory
+    return directory
+
+
+def stage(function=None, *, static_argnames: tuple[str, ...] = ()):
+    """Decorator: ``jax.jit`` whose tracing is kept on disk once `enable` was called.
+
+    Called with tracers (inside another jit or vmap) or with the caches off, a stage is
+    exactly ``jax.jit(function, static_argnames=...)``.
+    """
+    if function is None:
+        return functools.partial(stage, static_argnames=static_argnames)
+    jitted = jax.jit(function, static_argnames=static_argnames)
+    signature = inspect.signature(function)
+
+    @functools.wraps(function)
+    def call(*args, **kwargs):
+        leaves = jax.tree.leaves((args, kwargs))
+        if _directory is None or any(isinstance(x, jax.core.Tracer) for x in leaves):
+            return jitted(*args, **kwargs)
+        bound = signature.bind(*args, **kwargs)
+        bound.apply_defaults()
+        static = {name: bound.arguments.pop(name) for name in static_argnames}
+        return _exported(function, static, bound.args, bound.kwargs)
+
+    call._cache_size = jitted._cache_size  # compilations so far, as jax.jit reports
+    return call
+
+
+_loaded: dict[Path, tuple] = {}  # stage file -> (compiled call, output structure)
+
+
+def _load(path: Path, build) -> tuple:
+    """The compiled call of one stage file and its output structure, built if missing."""
+    if path not in _loaded:
+        try:
+            exported, out_tree = pickle.loads(path.read_bytes())
+            exported = jax.export.deserialize(exported)
+        except Exception:  # noqa: BLE001  (missing, truncated, other jaxlib): trace again
+            exported, out_tree = build()
+            _write(path, pickle.dumps((exported.serialize(), out_tree)))
+        _loaded[path] = jax.jit(exported.call), out_tree
+    return _loaded[path]
+
+
+def _exported(function, static: dict, args: tuple, kwargs: dict):
+    leaves, in_tree = jax.tree.flatten((args, kwargs))
+    # Typed PRNG keys cannot cross the export boundary: pass their raw data and rewrap.
+    impls = [jax.random.key_impl(x) if _is_key(x) else None for x in leaves]
+    raw = [jax.random.key_data(x) if impl else x for x, impl in zip(leaves, impls)]
+    avals = [jax.ShapeDtypeStruct(jax.numpy.shape(x), jax.numpy.result_type(x),
+                                  weak_type=type(x) in (int, float)) for x in raw]
+    signature = repr((function.__module__, function.__qualname__, sorted(static.items()),
+                      in_tree, [(a.shape, str(a.dtype), a.weak_type) for a in avals],
+                      [str(i) for i in impls], _fingerprint()))
+    path = _directory / "stages" / f"{hashlib.sha256(signature.encode()).hexdigest()}.stage"
+    out_tree = []
+
+    def flat(*raw):
+        keys = [jax.random.wrap_key_data(x, impl=i) if i else x for x, i in zip(raw, impls)]
+        args, kwargs = jax.tree.unflatten(in_tree, keys)
+        out, tree = jax.tree.flatten(function(*args, **kwargs, **static))
+        out_tree.append(tree)
+        return out
+
+    def build():
+        exported = jax.export.export(jax.jit(flat))(*avals)
+        return exported, out_tree[0]
+
+    compiled, tree = _load(path, build)
+    return jax.tree.unflatten(tree, compiled(*raw))
+
+
+def _is_key(x) -> bool:
+    return hasattr(x, "dtype") and jax.dtypes.issubdtype(x.dtype, jax.dtypes.prng_key)
+
+
+@functools.cache
+def _fingerprint() -> str:
+    """Versions of the compiling libraries and a hash of this package's source."""
+    digest = hashlib.sha256()
+    for name in ("jax", "jaxlib", "optimistix", "equinox", "lineax"):
+        digest.update(f"{name} {metadata.version(name)}\n".encode())
+    package = Path(__file__).parent
+    for path in sorted(package.rglob("*.py")):
+        digest.update(path.relative_to(package).as_posix().encode() + path.read_bytes())
+    return digest.hexdigest()
+
+
+def _write(path: Path, payload: bytes) -> None:
+    """Write whole or not at all: parallel processes may write the same stage."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, temporary = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
+    with os.fdopen(handle, "wb") as stream:
+        stream.write(payload)
+    os.replace(temporary, path)

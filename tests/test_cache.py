@@ -1,0 +1,40 @@
+"""On-disk stages (`brdfjax.cache`): same numbers as plain jit, no tracing in a later process."""
+
+import subprocess
+import sys
+
+from conftest import REPO
+
+from brdfjax.fitting import fit
+from brdfjax.synthetic import paper_sample
+
+# A later process loads the fit's stages from disk: neither optimistix nor equinox is
+# imported (they are only needed to trace the Levenberg-Marquardt stage).
+SCRIPT = """
+import sys
+from brdfjax.cache import enable
+from brdfjax.fitting import fit
+from brdfjax.synthetic import paper_sample
+enable(sys.argv[1])
+result = fit(paper_sample("khaki_paint", noise=0.01, seed=3).at_incidences([10, 30]), seed=2)
+print(repr(result.error), "optimistix" in sys.modules)
+"""
+
+
+def run_script(directory):
+    done = subprocess.run([sys.executable, "-c", SCRIPT, str(directory)], cwd=REPO,
+                          capture_output=True, text=True, timeout=300, check=True)
+    error, traced = done.stdout.split()
+    return float(error), traced == "True"
+
+
+def test_a_later_process_loads_the_stages_without_tracing(tmp_path):
+    plain = fit(paper_sample("khaki_paint", noise=0.01, seed=3).at_incidences([10, 30]), seed=2)
+    first, traced_first = run_script(tmp_path)
+    later, traced_later = run_script(tmp_path)
+    assert traced_first and not traced_later
+    assert later == first == plain.error  # the same numbers as plain jax.jit
+    for stage_file in (tmp_path / "stages").glob("*.stage"):
+        stage_file.write_bytes(stage_file.read_bytes()[:100])  # truncated: traced again
+    again, traced_again = run_script(tmp_path)
+    assert traced_again and again == first
