@@ -68,9 +68,10 @@ def worker(count: int, batches: dict, repeats: int, compare_single: bool,
     import jax
     import numpy as np
 
-    from brdfjax.batch import fit_batch
+    from brdfjax.batch import fit_batch, use_every_core
     from brdfjax.fitting import fit
 
+    use_every_core()  # single-threaded devices, as `brdfjax batch` runs (device count kept)
     data = samples(count)
     tic = time.perf_counter()
     results = fit_batch(data, **batches, **settings)
@@ -131,8 +132,7 @@ def run_worker(count: int, devices: int, batches: tuple = DEFAULT_BATCHES, repea
     report = json.loads(done.stdout.strip().splitlines()[-1])
     print(f"  {count} samples, {devices} device(s), batches {batches}: cold "
           f"{report['cold']:.1f} s, warm {report['warm']:.2f} s ({report['cpu']:.2f} s CPU), "
-          f"{report['maxrss_mb']:.0f} MB", 
-          file=sys.stderr)
+          f"{report['maxrss_mb']:.0f} MB", file=sys.stderr)
     return report
 
 

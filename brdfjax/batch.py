@@ -28,23 +28,27 @@ distinct good members), but as one compiled call per chunk of samples:
    beside it, ``FIELD-NOTES.md``), and on a CPU even the genetic search was slower vmapped
    over many samples than mapped; the defaults are the fastest measured on a 2-core CPU
    (``BENCHMARKS.md``, section batch). On a GPU, try ``None`` for both.
-6. The sample axis is sharded over the local devices (``NamedSharding`` on a 1-D mesh with
-   an ``Auto`` axis, see ``FIELD-NOTES.md``); plain ``jit`` partitions the work. On a CPU,
-   ``XLA_FLAGS=--xla_force_host_platform_device_count=N`` (or ``jax_num_cpu_devices``)
-   makes N devices of N cores.
+6. The sample axis is split over the local devices: each device gets a contiguous block
+   of the chunk's samples, placed on it (``jax.device_put``) and fitted by the same
+   compiled function, dispatched to all devices before waiting on any, so the devices run
+   independently. (A sample axis sharded with ``NamedSharding`` under one ``jit`` was
+   tried first: XLA then runs every loop in lock-step across devices, the search's and each
+   LM's ``while_loop`` waiting for the slowest device at every step, and 2 devices were
+   barely faster than 1.) On a CPU, `use_every_core` makes one single-threaded device per
+   core.
 """
 
 from __future__ import annotations
 
 import hashlib
 import inspect
+import os
 import time
 from collections.abc import Sequence
 from functools import partial
 
 import jax
 import numpy as np
-from jax.sharding import NamedSharding, PartitionSpec
 
 from brdfjax.bounds import Bounds, default_bounds
 from brdfjax.evolve import EvolveConfig, EvolveResult, evolve
@@ -89,7 +93,7 @@ def fit_batch(samples: Sequence[Measurements], *, seed: int | Sequence[int] = 0,
             ``chunk_size * points * starts * 5 * 8`` bytes of Jacobians).
         search_batch, polish_batch: samples side by side under ``vmap`` in the genetic
             search and in the LM polish (`across_samples`); None for the whole chunk.
-        devices: the devices to shard the sample axis over (default: ``jax.devices()``).
+        devices: the devices to split each chunk over (default: ``jax.devices()``).
         **options: ``starts``, ``population_size``, ``max_generations``, ``max_steps``,
             ``config``, ``constants``: as in `brdfjax.fitting.fit`, with its defaults
             (`FIT_DEFAULTS`).
@@ -106,8 +110,7 @@ def fit_batch(samples: Sequence[Measurements], *, seed: int | Sequence[int] = 0,
     constants, config = options.pop("constants"), options.pop("config")
     seeds = np.broadcast_to(np.asarray(seed, dtype=np.int64), (len(samples),))
     bounds = default_bounds() if bounds is None else bounds
-    mesh = jax.make_mesh((len(devices or jax.devices()),), ("samples",),
-                         axis_types=(jax.sharding.AxisType.Auto,), devices=devices)
+    devices = list(devices or jax.devices())
     settings = {**options, "search_batch": search_batch, "polish_batch": polish_batch}
     results: list[FitResult | None] = [None] * len(samples)
     # Stable sort by geometry, so that samples sharing one land in the same chunks.
@@ -131,7 +134,7 @@ def fit_batch(samples: Sequence[Measurements], *, seed: int | Sequence[int] = 0,
         chunk = list(problems)
         tic = time.perf_counter()
         searched, polished = _run_chunk(list(problems.values()), seeds[chunk], bounds,
-                                        config, mesh, chunk_size, settings)
+                                        config, devices, chunk_size, settings)
         share = (time.perf_counter() - tic) / len(chunk)
         for lane, index in enumerate(chunk):
             results[index] = _sample_result(
@@ -181,11 +184,11 @@ def _sample_result(data, searched, polished, population_size, seconds, max_steps
                    message=message)
 
 
-def _run_chunk(problems: list[Problem], seeds, bounds, config, mesh, chunk_size, settings):
-    """Pad one chunk, shard it over the mesh, fit it; host arrays cut to the real samples."""
-    count, devices = len(problems), mesh.devices.size
+def _run_chunk(problems: list[Problem], seeds, bounds, config, devices, chunk_size, settings):
+    """Pad one chunk, fit a block of it on every device at once; host arrays of the samples."""
+    count = len(problems)
     lanes = min(chunk_size, 1 << (count - 1).bit_length())
-    lanes = -(-max(lanes, count) // devices) * devices
+    lanes = -(-max(lanes, count) // len(devices)) * len(devices)
     points = POINT_BUCKET * -(-max(p.target.size for p in problems) // POINT_BUCKET)
     chosen = list(range(count)) + [0] * (lanes - count)
     shared = all(p.scene is problems[0].scene for p in problems)
@@ -196,16 +199,22 @@ def _run_chunk(problems: list[Problem], seeds, bounds, config, mesh, chunk_size,
     else:
         scene = Scene(*(np.stack(fields) for fields in zip(
             *([_pad(x, points) for x in problems[i].scene] for i in chosen))))
-    by_sample = NamedSharding(mesh, PartitionSpec("samples"))
-    everywhere = NamedSharding(mesh, PartitionSpec())
-    put = partial(jax.device_put, device=by_sample)
-    searched, polished = _fit_chunk(
-        put(np.asarray(seeds)[chosen]), jax.device_put(scene, by_sample if not shared
-                                                       else everywhere),
-        put(targets), put(weights), jax.device_put(bounds, everywhere),
-        jax.device_put(EvolveConfig() if config is None else config, everywhere),
-        groups=devices, **settings)
-    return jax.tree.map(lambda x: np.asarray(x)[:count], (searched, polished))
+    config = EvolveConfig() if config is None else config
+    block = lanes // len(devices)
+    running = []  # dispatched to every device before any result is awaited
+    per_sample = (np.asarray(seeds)[chosen], targets, weights, None if shared else scene)
+    for number, device in enumerate(devices):
+        part = jax.tree.map(partial(_block, number=number, size=block), per_sample)
+        seeds_, target, weight, scene_ = jax.device_put(part, device)
+        running.append(_fit_chunk(seeds_, jax.device_put(scene, device) if shared else scene_,
+                                  target, weight, *jax.device_put((bounds, config), device),
+                                  **settings))
+    return jax.tree.map(lambda *blocks: np.concatenate(blocks)[:count], *running)
+
+
+def _block(values, number: int, size: int):
+    """The ``number``-th block of ``size`` samples of an array with a leading sample axis."""
+    return values[number * size:(number + 1) * size]
 
 
 def _pad(values, length: int, fill=None) -> np.ndarray:
@@ -217,11 +226,11 @@ def _pad(values, length: int, fill=None) -> np.ndarray:
 
 
 @partial(jax.jit, static_argnames=("population_size", "max_generations", "starts",
-                                   "max_steps", "search_batch", "polish_batch", "groups"))
+                                   "max_steps", "search_batch", "polish_batch"))
 def _fit_chunk(seeds, scene: Scene, target, weight, bounds: Bounds, config: EvolveConfig, *,
                population_size: int, max_generations: int, starts: int, max_steps: int,
-               search_batch: int | None, polish_batch: int | None,
-               groups: int) -> tuple[EvolveResult, PolishResult]:
+               search_batch: int | None,
+               polish_batch: int | None) -> tuple[EvolveResult, PolishResult]:
     """The hybrid fit of a padded chunk in one compiled call.
 
     Args:
@@ -232,7 +241,6 @@ def _fit_chunk(seeds, scene: Scene, target, weight, bounds: Bounds, config: Evol
         population_size, max_generations, starts, max_steps: as in `fit`.
         search_batch, polish_batch: samples run side by side in each stage (see
             `across_samples`).
-        groups: the number of devices the sample axis is sharded over.
 
     Returns:
         The batched `EvolveResult` and `PolishResult`, leading axis B.
@@ -246,27 +254,24 @@ def _fit_chunk(seeds, scene: Scene, target, weight, bounds: Bounds, config: Evol
         return polish_population(population, Problem(scene, target, weight), bounds,
                                  starts=starts, max_steps=max_steps)
 
-    searched = across_samples(search, scene, (seeds, target, weight), search_batch, groups)
+    searched = across_samples(search, scene, (seeds, target, weight), search_batch)
     polished = across_samples(refine, scene, (searched.population, target, weight),
-                              polish_batch, groups)
+                              polish_batch)
     return searched, polished
 
 
-def across_samples(function, scene: Scene, arrays: tuple, batch: int | None, groups: int):
+def across_samples(function, scene: Scene, arrays: tuple, batch: int | None):
     """``function(scene, *arrays[i])`` for every sample i, ``batch`` samples side by side.
 
     ``batch`` samples run together under ``vmap``, such groups one after another under
     ``lax.map``; ``None`` vmaps them all at once. Under ``vmap`` a loop runs as long as its
-    slowest lane, so on a CPU small groups can be faster (``BENCHMARKS.md``). The sample
-    axis is first cut into ``groups`` blocks, one per device, vmapped over, so that the
-    sequential map runs within each device's samples and never across the sharded axis.
+    slowest lane, so on a CPU small groups can be faster (``BENCHMARKS.md``).
 
     Args:
         function: ``(scene, *per-sample arrays) -> pytree`` for one sample.
         scene: a `Scene` shared by all samples (arrays (P,)) or one per sample ((B, P)).
-        arrays: per-sample arrays, leading axis B (a multiple of ``groups``).
+        arrays: per-sample arrays, leading axis B.
         batch: samples per vmapped group, or None for all.
-        groups: blocks of the sample axis (the device count).
 
     Returns:
         The stacked outputs, leading axis B.
@@ -280,9 +285,25 @@ def across_samples(function, scene: Scene, arrays: tuple, batch: int | None, gro
     def one(item):
         return function(scene, *item) if shared else function(*item)
 
-    def blocks(x):
-        return x.reshape((groups, -1) + x.shape[1:])
+    return jax.lax.map(one, mapped, batch_size=batch)
 
-    out = jax.vmap(lambda block: jax.lax.map(one, block, batch_size=batch))(
-        jax.tree.map(blocks, mapped))
-    return jax.tree.map(lambda x: x.reshape((-1,) + x.shape[2:]), out)
+
+def use_every_core() -> list:
+    """The devices to fit on: on a CPU, one single-threaded device per core.
+
+    XLA alone keeps about one core busy on this work (its small operations gain little from
+    threads), while one device per core, each running its own block of samples on one
+    thread, keeps every core busy without the threads contending (``BENCHMARKS.md``,
+    section batch). Must run before JAX starts its backend to take effect; a device count
+    given in ``XLA_FLAGS`` (``--xla_force_host_platform_device_count``) is kept, and so are
+    the devices of a JAX that has already started.
+    """
+    flags = os.environ.get("XLA_FLAGS", "")
+    if "xla_cpu_multi_thread_eigen" not in flags:
+        os.environ["XLA_FLAGS"] = f"{flags} --xla_cpu_multi_thread_eigen=false".strip()
+    if "xla_force_host_platform_device_count" not in flags:
+        try:
+            jax.config.update("jax_num_cpu_devices", os.cpu_count() or 1)
+        except RuntimeError:  # JAX already running in this process: keep its devices
+            pass
+    return jax.devices()

@@ -64,7 +64,7 @@ def population_errors(z, prob: Problem, bounds: Bounds) -> jax.Array:
 @stage(static_argnames=("population_size", "islands", "max_generations", "elite_count",
                         "tournament_size", "patience", "precision"))
 def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = None, *,
-           population_size: int = 256, islands: int = 8, max_generations: int = 60,
+           population_size: int = 256, islands: int = 8, max_generations: int = 40,
            elite_count: int = 4, tournament_size: int = 3, patience: int = 15,
            precision: str = "float32") -> EvolveResult:
     """Run the genetic algorithm on one problem, as ``islands`` independent populations.

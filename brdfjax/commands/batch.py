@@ -200,9 +200,10 @@ def _fit_chunks(chunks, scheduler, options, record) -> list:
     from brdfjax.cluster import fit_chunk, fit_on_cluster
 
     if scheduler is None:
+        from brdfjax.batch import use_every_core
         from brdfjax.cache import enable
 
-        devices = _every_core()
+        devices = use_every_core()
         enable()
         print(f"fitting on {len(devices)} {devices[0].platform} device(s)", file=sys.stderr)
         for chunk in chunks:
@@ -222,24 +223,6 @@ def _fit_chunks(chunks, scheduler, options, record) -> list:
         else:
             record(dict(zip(sent[number], results)))
     return lost
-
-
-def _every_core() -> list:
-    """The JAX devices to shard over: on a CPU, one device per core.
-
-    XLA alone keeps about one core busy on this work, while samples sharded over one
-    device per core keep every core busy (``BENCHMARKS.md``, section batch). A device
-    count given in ``XLA_FLAGS`` (``--xla_force_host_platform_device_count``) is kept, and
-    so are the devices of a JAX that has already started.
-    """
-    import jax
-
-    if "xla_force_host_platform_device_count" not in os.environ.get("XLA_FLAGS", ""):
-        try:
-            jax.config.update("jax_num_cpu_devices", os.cpu_count() or 1)
-        except RuntimeError:  # JAX already running in this process: keep its devices
-            pass
-    return jax.devices()
 
 
 def _write_json(directory, batch: dict) -> None:
