@@ -52,7 +52,7 @@ import numpy as np
 
 from brdfjax.bounds import Bounds, default_bounds
 from brdfjax.evolve import EvolveConfig, EvolveResult, evolve
-from brdfjax.fitting import FitResult, _result, fit, polish_summary, search_summary
+from brdfjax.fitting import FitResult, fit, fit_result, polish_summary, search_summary
 from brdfjax.geometry import Scene, ShadowingConstants
 from brdfjax.measurements import DataError, Measurements, validate
 from brdfjax.model import Params
@@ -178,10 +178,10 @@ def _sample_result(data, searched, polished, population_size, seconds, max_steps
                             "before meeting its tolerance",
                "failed": "no start reached a finite E"}.get(status, "")
     empty = data.select(np.zeros(len(data), dtype=bool))
-    return _result(data, data, empty, best, bounds, constants, method="hybrid", status=status,
-                   evaluations=evaluations + lm_evaluations, lm_steps=polished.steps,
-                   lm_success=polished.success, timings={"total": seconds}, history=history,
-                   message=message)
+    return fit_result(data, data, empty, best, bounds, constants, method="hybrid",
+                      status=status, evaluations=evaluations + lm_evaluations,
+                      lm_steps=polished.steps, lm_success=polished.success,
+                      timings={"total": seconds}, history=history, message=message)
 
 
 def _run_chunk(problems: list[Problem], seeds, bounds, config, devices, chunk_size, settings):

@@ -105,8 +105,8 @@ def _exported(function, static: dict, args: tuple, kwargs: dict):
     out_tree = []
 
     def flat(*raw):
-        keys = [jax.random.wrap_key_data(x, impl=i) if i else x for x, i in zip(raw, impls)]
-        args, kwargs = jax.tree.unflatten(in_tree, keys)
+        leaves = [jax.random.wrap_key_data(x, impl=i) if i else x for x, i in zip(raw, impls)]
+        args, kwargs = jax.tree.unflatten(in_tree, leaves)
         out, tree = jax.tree.flatten(function(*args, **kwargs, **static))
         out_tree.append(tree)
         return out

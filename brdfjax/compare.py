@@ -21,6 +21,7 @@ import time
 from dataclasses import dataclass
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from brdfjax.bounds import default_bounds, from_unit
@@ -42,6 +43,8 @@ class MethodRun:
 def _unit_objectives(data, bounds):
     """E and the residual vector as NumPy functions of unit-cube coordinates."""
     prob = problem(data)
+    # Bounds as JAX arrays: captured as NumPy constants they cost 30 % more per call here.
+    bounds = jax.tree.map(jnp.asarray, bounds)
     error_jit = jax.jit(lambda z: error(from_unit(z, bounds), prob))
     errors_jit = jax.jit(jax.vmap(lambda z: error(from_unit(z, bounds), prob)))
     residual_jit = jax.jit(lambda z: residuals(from_unit(z, bounds), prob))

@@ -11,9 +11,10 @@ of real data are reachable. Each generation:
    (BLX-0.5 crossover), then each gene mutates with probability ``mutation_rate`` by a
    normal step of ``mutation_scale``, and is clipped to the box.
 
-The loop (``lax.while_loop``) stops after ``max_generations`` or when the best error has
-not improved by a relative ``tolerance`` for ``patience`` generations. Sizes are static;
-rates, bounds and data are traced, so sweeping them never recompiles.
+The islands evolve side by side in one loop (``lax.while_loop``), their members scored
+together; it stops after ``max_generations`` or when no island's best error has improved
+by a relative ``tolerance`` for ``patience`` generations. Sizes are static; rates, bounds
+and data are traced, so sweeping them never recompiles.
 """
 
 from __future__ import annotations
@@ -96,8 +97,9 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
     if not jax.dtypes.issubdtype(jnp.result_type(key), jax.dtypes.prng_key):
         key = jax.random.key(key)
     out, dtype = prob.target.dtype, jnp.dtype(precision)
-    low = lambda x: x.astype(dtype) if jnp.issubdtype(x.dtype, jnp.floating) else x
-    prob, bounds = jax.tree.map(low, (prob, bounds))
+    prob, bounds = jax.tree.map(
+        lambda x: x.astype(dtype) if jnp.issubdtype(x.dtype, jnp.floating) else x,
+        (prob, bounds))
     config = jax.tree.map(lambda x: jnp.asarray(x, dtype), config)
     size = population_size // islands
 

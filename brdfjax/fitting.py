@@ -169,9 +169,9 @@ def fit(data: Measurements, method: str = "hybrid", *, seed: int = 0,
         steps, success = np.asarray(polished.steps), np.asarray(polished.success)
         evaluations += lm_evaluations
     timings["total"] = time.perf_counter() - begin
-    return _result(data, train, held, np.asarray(best, dtype=float), bounds, constants,
-                   method=method, status=status, evaluations=evaluations, lm_steps=steps,
-                   lm_success=success, timings=timings, history=history)
+    return fit_result(data, train, held, np.asarray(best, dtype=float), bounds, constants,
+                      method=method, status=status, evaluations=evaluations, lm_steps=steps,
+                      lm_success=success, timings=timings, history=history)
 
 
 def search_summary(searched: EvolveResult, population_size: int) -> tuple[np.ndarray, int]:
@@ -215,8 +215,10 @@ def _lm_starts(start, count, seed, bounds):
 
 
 
-def _result(data, train, held, vector, bounds, constants, **details) -> FitResult:
-    """A `FitResult`: E overall, per incidence and held out, from one model evaluation."""
+def fit_result(data, train, held, vector, bounds, constants, **details) -> FitResult:
+    """A `FitResult` for ``vector``: E overall, per incidence and held out, from one model
+    evaluation of ``data`` (split into ``train`` and ``held``); ``details`` fill the rest
+    (status, timings, ...). `brdfjax.batch` builds each sample's result with it too."""
     geometry = prepare(data, constants)
     model = np.asarray(projected(vector, geometry))
     target, weight = targets(data)
