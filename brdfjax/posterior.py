@@ -43,7 +43,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from brdfjax.bounds import Bounds, default_bounds, from_unit
-from brdfjax.cache import stage
 from brdfjax.geometry import PAPER_CONSTANTS, Scene, ShadowingConstants
 from brdfjax.measurements import Measurements
 from brdfjax.model import PARAMETER_NAMES, evaluate_projected
@@ -189,7 +188,9 @@ def log_posterior(x, post: Posterior) -> jax.Array:
     return jnp.where(inside & jnp.isfinite(value), value, -jnp.inf)
 
 
-log_posterior_batch = stage(jax.vmap(log_posterior, in_axes=(0, None)))
+# Plain jit, not a `brdfjax.cache.stage`: emcee calls it thousands of times, and a stage's
+# per-call bookkeeping would cost more than the evaluation.
+log_posterior_batch = jax.jit(jax.vmap(log_posterior, in_axes=(0, None)))
 log_posterior_batch.__doc__ = "`log_posterior` of each row of x (walkers, ndim), jitted."
 
 
@@ -499,8 +500,10 @@ def sample_posterior(data: Measurements, fit, *, walkers: int = 32, max_steps: i
     if backend is not None and not resume:
         backend.reset(walkers, post.ndim)
 
+    on_device = jax.device_put(post)  # once, not at every one of emcee's calls
+
     def log_probability(x):
-        return np.asarray(log_posterior_batch(x, post))
+        return np.asarray(log_posterior_batch(x, on_device))
 
     sampler = ensemble_sampler(walkers, post.ndim, log_probability, backend=backend,
                                moves=[(emcee.moves.DEMove(), 0.8), (snooker_move(), 0.2)])
