@@ -5,8 +5,8 @@ LM has no bounds, so it runs in the unconstrained coordinates ``u`` of `brdfjax.
 with ``throw=False``, each reporting its own status; the caller keeps the best.
 
 The linear solver is ``lineax.Normal(lineax.Cholesky())``: with 5 parameters the normal
-equations are tiny, it is the fastest here, and unlike the default QR it does not deadlock
-when the batch is sharded over several CPU devices (``FIELD-NOTES.md``).
+equations are tiny, it is the fastest here, and unlike the default QR it was not seen to
+deadlock on several simulated CPU devices (``FIELD-NOTES.md``).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Batch fits: equal to single fits; a bad sample fails alone; sharded, on Dask, resumable.
+"""Batch fits: equal to single fits; a bad sample fails alone; two devices, Dask, resumable.
 
 Every batch here uses the small `SMALL` settings so that compiling (about 10 s a shape on
 two cores) dominates as little as possible. The command-line runs share one on-disk
@@ -197,7 +197,7 @@ def test_interrupted_batch_resumes_without_refitting_or_duplicates(reference, ca
 
 
 @pytest.mark.timeout(300)
-def test_sharded_over_two_devices_gives_the_same_results(reference, catalogue, environment,
+def test_split_over_two_devices_gives_the_same_results(reference, catalogue, environment,
                                                          tmp_path):
     out = tmp_path / "results.csv"
     env = {**environment, "XLA_FLAGS": "--xla_force_host_platform_device_count=2"}
