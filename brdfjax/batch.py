@@ -16,12 +16,14 @@ distinct good members), but as one compiled call per chunk of samples:
    every scene value stays finite, and zero weight, so E is unchanged), and a chunk's
    sample count to a power of two (at most ``chunk_size``) and a multiple of the device
    count, with copies of its first sample whose results are dropped. Compilations are so
-   bounded to one per (sample bucket, point bucket, shared geometry or not).
+   bounded to one per (sample bucket, point bucket, shared geometry or not) and device
+   (XLA compiles for each device it runs on; a chunk smaller than the device count uses
+   only as many devices as it has samples).
 4. Every sample is keyed by ``jax.random.key(seed)`` as `brdfjax.fitting.fit` keys it, so a
    batched fit follows the same search as the single fit of the same sample and ends at the
    same E (to 1e-9 relative, tested; rounding in the longer padded sums is the only
    difference).
-5. Each stage runs its samples ``search_batch`` (genetic search) or ``polish_batch``
+5. Each step runs its samples ``search_batch`` (genetic search) or ``polish_batch``
    (Levenberg-Marquardt) at a time side by side under ``vmap``, such groups one after
    another under ``lax.map`` (`across_samples`); ``None`` vmaps the whole chunk. A vmapped
    loop runs as long as its slowest lane (an LM that needs 700 steps holds up every sample
@@ -187,6 +189,7 @@ def _sample_result(data, searched, polished, population_size, seconds, max_steps
 def _run_chunk(problems: list[Problem], seeds, bounds, config, devices, chunk_size, settings):
     """Pad one chunk, fit a block of it on every device at once; host arrays of the samples."""
     count = len(problems)
+    devices = devices[:count]
     lanes = min(chunk_size, 1 << (count - 1).bit_length())
     lanes = -(-max(lanes, count) // len(devices)) * len(devices)
     points = POINT_BUCKET * -(-max(p.target.size for p in problems) // POINT_BUCKET)
@@ -303,7 +306,7 @@ def use_every_core() -> list:
         os.environ["XLA_FLAGS"] = f"{flags} --xla_cpu_multi_thread_eigen=false".strip()
     if "xla_force_host_platform_device_count" not in flags:
         try:
-            jax.config.update("jax_num_cpu_devices", os.cpu_count() or 1)
+            jax.config.update("jax_num_cpu_devices", len(os.sched_getaffinity(0)))
         except RuntimeError:  # JAX already running in this process: keep its devices
             pass
     return jax.devices()

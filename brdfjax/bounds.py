@@ -29,7 +29,8 @@ from brdfjax.model import PARAMETER_NAMES, array_module
 class Bounds(NamedTuple):
     """Lower and upper bounds of (kb, kr, a, b, kd) and which are searched in log10.
 
-    Arrays of shape (5,); all traced, so sweeping bounds never recompiles.
+    Arrays of shape (5,): NumPy from `make_bounds`, traced inside compiled code, so
+    sweeping bounds never recompiles.
     """
 
     lower: jax.Array
@@ -94,8 +95,9 @@ def to_unit(params, bounds: Bounds) -> jax.Array:
 
 def from_free(u, bounds: Bounds) -> jax.Array:
     """Physical parameters from the unconstrained coordinates that LM searches."""
-    xp = array_module(u, *bounds)
-    return from_unit(1 / (1 + xp.exp(-u)), bounds)
+    if array_module(u, *bounds) is np:
+        return from_unit(np.exp(-np.logaddexp(0.0, -np.asarray(u))), bounds)
+    return from_unit(jax.nn.sigmoid(u), bounds)  # finite gradient however large |u|
 
 
 def to_free(params, bounds: Bounds, margin: float = 1e-9) -> jax.Array:

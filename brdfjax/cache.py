@@ -9,10 +9,11 @@ loads that form (milliseconds) and compiles it, which the compilation cache turn
 lookup. Loading a stage imports neither optimistix nor equinox.
 
 Both caches are off until `enable` is called (the CLI calls it); library calls then use
-plain ``jax.jit``. A stage's file name hashes the function's name, the static
-arguments, the argument shapes and dtypes, the versions of JAX and its libraries, and the
-source of the whole ``brdfjax`` package, so editing any module never reuses a stale stage.
-An unreadable file is traced again and replaced.
+plain ``jax.jit``. A stage's file name hashes the function's module and name, the static
+arguments, the argument shapes and dtypes, the platform, the versions of JAX and its
+libraries, and the source of the whole ``brdfjax`` package, so editing a brdfjax module
+never reuses a stale stage (stages are for brdfjax's own functions). An unreadable file is
+traced again and replaced; a stage that cannot be exported or written runs as plain jit.
 """
 
 from __future__ import annotations
@@ -69,35 +70,46 @@ def stage(function=None, *, static_argnames: tuple[str, ...] = ()):
         bound = signature.bind(*args, **kwargs)
         bound.apply_defaults()
         static = {name: bound.arguments.pop(name) for name in static_argnames}
-        return _exported(function, static, bound.args, bound.kwargs)
+        return _exported(function, jitted, static, bound.args, bound.kwargs)
 
     call._cache_size = jitted._cache_size  # compilations so far, as jax.jit reports
     return call
 
 
-_loaded: dict[Path, tuple] = {}  # stage file -> (compiled call, output structure)
+# stage file -> (compiled call, output structure), or None where it could not be made
+_loaded: dict[Path, tuple | None] = {}
 
 
-def _load(path: Path, build) -> tuple:
-    """The compiled call of one stage file and its output structure, built if missing."""
+def _load(path: Path, build) -> tuple | None:
+    """The compiled call of one stage file and its output structure, built if missing.
+
+    None when the stage cannot be exported or written (the caller then runs plain jit).
+    """
     if path not in _loaded:
         try:
             exported, out_tree = pickle.loads(path.read_bytes())
             exported = jax.export.deserialize(exported)
         except Exception:  # noqa: BLE001  (missing, truncated, other jaxlib): trace again
-            exported, out_tree = build()
-            _write(path, pickle.dumps((exported.serialize(), out_tree)))
+            exported = None
+        if exported is None:
+            try:
+                exported, out_tree = build()
+                _write(path, pickle.dumps((exported.serialize(), out_tree)))
+            except Exception:  # noqa: BLE001  (not exportable, cache not writable)
+                _loaded[path] = None
+                return None
         _loaded[path] = jax.jit(exported.call), out_tree
     return _loaded[path]
 
 
-def _exported(function, static: dict, args: tuple, kwargs: dict):
+def _exported(function, jitted, static: dict, args: tuple, kwargs: dict):
     leaves, in_tree = jax.tree.flatten((args, kwargs))
     # Typed PRNG keys cannot cross the export boundary: pass their raw data and rewrap.
     impls = [jax.random.key_impl(x) if _is_key(x) else None for x in leaves]
     raw = [jax.random.key_data(x) if impl else x for x, impl in zip(leaves, impls)]
     avals = [jax.ShapeDtypeStruct(jax.numpy.shape(x), jax.numpy.result_type(x),
-                                  weak_type=type(x) in (int, float)) for x in raw]
+                                  weak_type=getattr(x, "weak_type", type(x) in (int, float)))
+             for x in raw]
     signature = repr((function.__module__, function.__qualname__, sorted(static.items()),
                       in_tree, [(a.shape, str(a.dtype), a.weak_type) for a in avals],
                       [str(i) for i in impls], _fingerprint()))
@@ -115,7 +127,10 @@ def _exported(function, static: dict, args: tuple, kwargs: dict):
         exported = jax.export.export(jax.jit(flat))(*avals)
         return exported, out_tree[0]
 
-    compiled, tree = _load(path, build)
+    loaded = _load(path, build)
+    if loaded is None:
+        return jitted(*args, **kwargs, **static)
+    compiled, tree = loaded
     return jax.tree.unflatten(tree, compiled(*raw))
 
 
@@ -125,8 +140,11 @@ def _is_key(x) -> bool:
 
 @functools.cache
 def _fingerprint() -> str:
-    """Versions of the compiling libraries and a hash of this package's source."""
+    """The platform, the x64 switch, the libraries' versions, and this package's source."""
     digest = hashlib.sha256()
+    device = jax.devices()[0]
+    digest.update(f"{device.platform} {device.device_kind} "
+                  f"x64={jax.config.jax_enable_x64}\n".encode())
     for name in ("jax", "jaxlib", "optimistix", "equinox", "lineax"):
         digest.update(f"{name} {metadata.version(name)}\n".encode())
     package = Path(__file__).parent

@@ -77,7 +77,8 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
     the basin, Levenberg-Marquardt polishes in the problem's float64).
 
     Args:
-        key: a JAX PRNG key, or an integer seed; the same key gives the same run.
+        key: a JAX PRNG key (new or legacy), or an integer seed; the same key gives the
+            same run.
         prob: the measurement set (`brdfjax.objective.problem`).
         bounds: the search box.
         config: the rates (`EvolveConfig` defaults if None).
@@ -94,8 +95,10 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
         raise ValueError(f"population_size {population_size} is not a multiple of "
                          f"islands {islands}")
     config = EvolveConfig() if config is None else config
-    if not jax.dtypes.issubdtype(jnp.result_type(key), jax.dtypes.prng_key):
+    if jnp.ndim(key) == 0 and jnp.issubdtype(jnp.result_type(key), jnp.integer):
         key = jax.random.key(key)
+    elif not jax.dtypes.issubdtype(jnp.result_type(key), jax.dtypes.prng_key):
+        key = jax.random.wrap_key_data(key)  # a legacy uint32 key of jax.random.PRNGKey
     out, dtype = prob.target.dtype, jnp.dtype(precision)
     prob, bounds = jax.tree.map(
         lambda x: x.astype(dtype) if jnp.issubdtype(x.dtype, jnp.floating) else x,
@@ -112,7 +115,7 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
         return (jnp.take_along_axis(z, order[..., None], axis=1),
                 jnp.take_along_axis(errors, order, axis=-1))
 
-    def breed(key, z, errors):
+    def breed(key, z):
         """Children of one island (sorted best first): tournament, BLX blend, mutation."""
         k_tour, k_blend, k_cross, k_mut, k_step = jax.random.split(key, 5)
         children = size - elite_count
@@ -134,7 +137,7 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
     def step(state):
         generation, key, z, errors, history, stalled, best = state
         key, sub = jax.random.split(key)
-        children = jax.vmap(breed)(jax.random.split(sub, islands), z, errors)
+        children = jax.vmap(breed)(jax.random.split(sub, islands), z)
         z, errors = sort(jnp.concatenate([z[:, :elite_count], children], axis=1),
                          jnp.concatenate([errors[:, :elite_count], score(children)], axis=1))
         improved = errors[:, 0] < best * (1 - config.tolerance)

@@ -214,7 +214,6 @@ def _lm_starts(start, count, seed, bounds):
     return to_free(np.atleast_2d(np.asarray(start, dtype=float)), bounds)
 
 
-
 def fit_result(data, train, held, vector, bounds, constants, **details) -> FitResult:
     """A `FitResult` for ``vector``: E overall, per incidence and held out, from one model
     evaluation of ``data`` (split into ``train`` and ``held``); ``details`` fill the rest

@@ -81,7 +81,9 @@ def reflectance(params, theta_i, constants: ShadowingConstants = PAPER_CONSTANTS
         see `energy_warning`.
     """
     xp = array_module(theta_i)
-    theta_i = xp.asarray(theta_i, dtype=xp.result_type(float, theta_i))
+    theta_i = xp.asarray(theta_i)
+    if not xp.issubdtype(theta_i.dtype, xp.floating):  # float32 angles stay float32
+        theta_i = theta_i.astype(float)
     flat = _reflectance(params, theta_i.reshape(-1), radial_nodes=radial_nodes,
                         azimuth_nodes=azimuth_nodes, constants=constants)
     return flat.reshape(theta_i.shape)

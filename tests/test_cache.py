@@ -5,6 +5,7 @@ import sys
 
 from conftest import REPO
 
+from brdfjax import cache
 from brdfjax.fitting import fit
 from brdfjax.synthetic import paper_sample
 
@@ -38,3 +39,20 @@ def test_a_later_process_loads_the_stages_without_tracing(tmp_path):
         stage_file.write_bytes(stage_file.read_bytes()[:100])  # truncated: traced again
     again, traced_again = run_script(tmp_path)
     assert traced_again and again == first
+
+
+def square_plus(x, power=2):
+    return x**power + 1.0
+
+
+def test_a_stage_is_written_once_and_falls_back_to_jit_where_it_cannot_be(tmp_path,
+                                                                          monkeypatch):
+    staged = cache.stage(square_plus, static_argnames=("power",))
+    monkeypatch.setattr(cache, "_directory", tmp_path)
+    assert float(staged(3.0, 3)) == 28.0  # a positional static argument
+    assert float(staged(2.0, power=3)) == 9.0
+    assert len(list((tmp_path / "stages").glob("*.stage"))) == 1
+    blocked = tmp_path / "a-file"
+    blocked.write_text("not a directory: no stage can be written under it")
+    monkeypatch.setattr(cache, "_directory", blocked)
+    assert float(staged(3.0, power=2)) == 10.0

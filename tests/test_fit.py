@@ -105,3 +105,15 @@ def test_bound_transforms_round_trip():
         make_bounds({"kb": (0.0, 1.0)})
     with pytest.raises(ValueError, match="unknown parameter"):
         make_bounds({"kx": (0.0, 1.0)})
+
+
+def test_evolve_takes_a_seed_a_typed_key_or_a_legacy_key():
+    import jax
+
+    from brdfjax.objective import problem
+
+    prob = problem(paper_sample("khaki_paint", noise=0.0).at_incidences([10]))
+    runs = [evolve(key, prob, default_bounds(), max_generations=2).errors
+            for key in (5, jax.random.key(5), jax.random.PRNGKey(5))]
+    np.testing.assert_array_equal(runs[0], runs[1])
+    np.testing.assert_array_equal(runs[0], runs[2])
