@@ -165,27 +165,30 @@ def count_rows(path: Path) -> int:
         return 0
 
 
-def kill_after_first_chunk(command, out, environment) -> subprocess.Popen:
-    """Start a run and SIGKILL it as soon as it has written its first chunk (a crash)."""
+def stop_after_first_chunk(command, out, environment, how: int) -> subprocess.Popen:
+    """Start a run and send it signal ``how`` as soon as it has written its first chunk."""
     process = subprocess.Popen(command, env=environment, stdout=subprocess.DEVNULL,
                                stderr=subprocess.DEVNULL)
     deadline = time.monotonic() + 240
     while count_rows(out) == 0 and process.poll() is None:
         assert time.monotonic() < deadline, "no chunk written in 240 s"
         time.sleep(0.002)
-    process.kill()
-    process.wait(timeout=60)
+    process.send_signal(how)
+    process.wait(timeout=120)
     return process
 
 
 @pytest.mark.timeout(400)
+@pytest.mark.parametrize(("how", "status"), [(signal.SIGKILL, -signal.SIGKILL),  # a crash
+                                             (signal.SIGINT, 130)])  # Ctrl-C
 def test_interrupted_batch_resumes_without_refitting_or_duplicates(reference, catalogue,
-                                                                  environment, tmp_path):
+                                                                  environment, tmp_path,
+                                                                  how, status):
     out = tmp_path / "results.csv"
     command = batch_command(catalogue, out)
     total = CATALOGUE_SIZE + 1
-    crashed = kill_after_first_chunk(command, out, environment)
-    assert crashed.returncode == -signal.SIGKILL
+    crashed = stop_after_first_chunk(command, out, environment, how)
+    assert crashed.returncode == status
     after_crash = count_rows(out)
     assert 0 < after_crash < total, "the run ended before it was killed"
     finished = subprocess.run(command, check=False, env=environment, capture_output=True,
