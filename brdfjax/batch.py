@@ -141,7 +141,8 @@ def fit_batch(samples: Sequence[Measurements], *, seed: int | Sequence[int] = 0,
         for lane, index in enumerate(chunk):
             results[index] = _sample_result(
                 samples[index], _lane(searched, lane), _lane(polished, lane),
-                options["population_size"], share, options["max_steps"], bounds, constants)
+                options["population_size"], share, options["max_steps"], bounds, constants,
+                problems[index].scene)
     return results
 
 
@@ -172,7 +173,7 @@ def _failed(data: Measurements, message: str, bounds: Bounds,
 
 
 def _sample_result(data, searched, polished, population_size, seconds, max_steps, bounds,
-                   constants) -> FitResult:
+                   constants, geometry) -> FitResult:
     """One sample's `FitResult` from its lane of the batched search and polish."""
     history, evaluations = search_summary(searched, population_size)
     best, status, lm_evaluations = polish_summary(polished)
@@ -180,7 +181,7 @@ def _sample_result(data, searched, polished, population_size, seconds, max_steps
                             "before meeting its tolerance",
                "failed": "no start reached a finite E"}.get(status, "")
     empty = data.select(np.zeros(len(data), dtype=bool))
-    return fit_result(data, data, empty, best, bounds, constants, method="hybrid",
+    return fit_result(data, data, empty, best, bounds, constants, geometry, method="hybrid",
                       status=status, evaluations=evaluations + lm_evaluations,
                       lm_steps=polished.steps, lm_success=polished.success,
                       timings={"total": seconds}, history=history, message=message)

@@ -170,7 +170,8 @@ def fit(data: Measurements, method: str = "hybrid", *, seed: int = 0,
         evaluations += lm_evaluations
     timings["total"] = time.perf_counter() - begin
     return fit_result(data, train, held, np.asarray(best, dtype=float), bounds, constants,
-                      method=method, status=status, evaluations=evaluations, lm_steps=steps,
+                      geometry=None if len(held) else prob.scene, method=method,
+                      status=status, evaluations=evaluations, lm_steps=steps,
                       lm_success=success, timings=timings, history=history)
 
 
@@ -214,11 +215,13 @@ def _lm_starts(start, count, seed, bounds):
     return to_free(np.atleast_2d(np.asarray(start, dtype=float)), bounds)
 
 
-def fit_result(data, train, held, vector, bounds, constants, **details) -> FitResult:
+def fit_result(data, train, held, vector, bounds, constants, geometry=None,
+               **details) -> FitResult:
     """A `FitResult` for ``vector``: E overall, per incidence and held out, from one model
-    evaluation of ``data`` (split into ``train`` and ``held``); ``details`` fill the rest
-    (status, timings, ...). `brdfjax.batch` builds each sample's result with it too."""
-    geometry = prepare(data, constants)
+    evaluation of ``data`` (split into ``train`` and ``held``; ``geometry`` is the scene of
+    ``data`` where already computed); ``details`` fill the rest (status, timings, ...).
+    `brdfjax.batch` builds each sample's result with it too."""
+    geometry = prepare(data, constants) if geometry is None else geometry
     model = np.asarray(projected(vector, geometry))
     target, weight = targets(data)
     is_held = data.incidence_mask(held.incidences_deg)
