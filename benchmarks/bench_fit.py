@@ -33,7 +33,7 @@ import brdfjax
 from benchmarks.report import write_section
 from brdfjax.bounds import default_bounds
 from brdfjax.compare import compare, format_table, scipy_de_ls
-from brdfjax.evolve import population_errors
+from brdfjax.evolve import score_population
 from brdfjax.fitting import fit
 from brdfjax.formats import load
 from brdfjax.model import PAPER_SAMPLES
@@ -65,7 +65,7 @@ def population_row(data, dtype, repeats):
     bounds = jax.tree.map(lambda x: x.astype(dtype) if x.dtype.kind == "f" else x,
                           default_bounds())
     z = jax.random.uniform(jax.random.key(0), (512, 5), dtype=dtype)
-    run = jax.jit(population_errors)
+    run = jax.jit(score_population)
     seconds = median_time(lambda: run(z, prob, bounds), repeats)
     return (f"| {jnp.dtype(dtype).name} | 512 x {len(data)} | {1e3 * seconds:.2f} | "
             f"{1e9 * seconds / (512 * len(data)):.2f} |")

@@ -2,18 +2,20 @@
 
 The genetic algorithm searches the unit cube; Levenberg-Marquardt, which has no bounds,
 searches an unconstrained ``u`` with ``z = sigmoid(u)``. A unit coordinate ``z`` maps to a
-parameter linearly or, for the positive parameters, in log10:
+parameter through a per-parameter scale ``T`` (linear, log10 or asinh):
 
-    p = lower + (upper - lower) z            (linear: b)
-    p = 10 ** (log10 lower + (log10 upper - log10 lower) z)   (log: kb, kr, a, kd)
+    p = T^-1(T(lower) + (T(upper) - T(lower)) z)
 
 Why these defaults: the paper's five samples span kb 0.003-5.7, kr 0.48-16, a 0.45-16,
 b -59 to -18, kd 0.07-2.3. Real black coatings push the fit into a degeneracy where
 ``kb exp(b (1 - cos g)^a)`` trades a tiny kb (down to 1e-12) against a positive b (up to
 +35). Searched linearly, such ranges hide the basin from a global search; in log10 it is
 found on every real run tried (``FIELD-NOTES.md``). So kb spans 1e-14..1e3 in log10, kr
-and a 1e-2..1e2, kd 1e-8..1e2, and b stays linear over -150..80, wide around every value
-seen. Users can pass their own.
+and a 1e-2..1e2, kd 1e-8..1e2. b takes either sign and matters from about 0.1 up
+(it multiplies ``(1 - cos g)^a <= 1`` in an exponent): it spans -150..80 on an asinh
+scale, linear near zero and logarithmic beyond 1. Searched linearly, |b| < 0.3 would be
+0.3 % of the range, and the best fit of cement-like data (a weak Fresnel term) lies
+there; on the asinh scale it is 6 %. Users can pass their own ranges and scales.
 """
 
 from __future__ import annotations
@@ -25,21 +27,25 @@ import numpy as np
 
 from brdfjax.model import PARAMETER_NAMES, array_module
 
+LINEAR, LOG10, ASINH = 0, 1, 2
+SCALES = {"linear": LINEAR, "log10": LOG10, "asinh": ASINH}
+
 
 class Bounds(NamedTuple):
-    """Lower and upper bounds of (kb, kr, a, b, kd) and which are searched in log10.
+    """Lower and upper bounds of (kb, kr, a, b, kd) and the scale each is searched on.
 
     Arrays of shape (5,): NumPy from `make_bounds`, traced inside compiled code, so
-    sweeping bounds never recompiles.
+    sweeping bounds never recompiles. ``scale`` holds `LINEAR`, `LOG10` or `ASINH`.
     """
 
     lower: jax.Array
     upper: jax.Array
-    log_scale: jax.Array
+    scale: jax.Array
 
 
 DEFAULT_RANGES = {"kb": (1e-14, 1e3), "kr": (1e-2, 1e2), "a": (1e-2, 1e2),
                   "b": (-150.0, 80.0), "kd": (1e-8, 1e2)}
+DEFAULT_SCALES = {"kb": "log10", "kr": "log10", "a": "log10", "b": "asinh", "kd": "log10"}
 
 
 def default_bounds() -> Bounds:
@@ -47,50 +53,65 @@ def default_bounds() -> Bounds:
     return make_bounds({})
 
 
-def make_bounds(ranges: dict, log_scale=(True, True, True, False, True)) -> Bounds:
-    """Bounds from ``{name: (low, high)}``; names missing take `DEFAULT_RANGES`."""
-    unknown = set(ranges) - set(PARAMETER_NAMES)
+def make_bounds(ranges: dict, scales: dict | None = None) -> Bounds:
+    """Bounds from ``{name: (low, high)}`` and ``{name: "linear" | "log10" | "asinh"}``.
+
+    Names missing take `DEFAULT_RANGES` and `DEFAULT_SCALES`.
+    """
+    scales = {**DEFAULT_SCALES, **(scales or {})}
+    unknown = (set(ranges) | set(scales)) - set(PARAMETER_NAMES)
     if unknown:
         raise ValueError(f"unknown parameter(s) {sorted(unknown)}; names: {PARAMETER_NAMES}")
+    bad_scale = {k: v for k, v in scales.items() if v not in SCALES}
+    if bad_scale:
+        raise ValueError(f"unknown scale(s) {bad_scale}; scales: {tuple(SCALES)}")
     base = {**DEFAULT_RANGES, **ranges}
     lower = np.array([base[k][0] for k in PARAMETER_NAMES], dtype=float)
     upper = np.array([base[k][1] for k in PARAMETER_NAMES], dtype=float)
-    log_scale = np.asarray(log_scale, dtype=bool)
+    scale = np.array([SCALES[scales[k]] for k in PARAMETER_NAMES])
     if np.any(lower >= upper):
         bad = PARAMETER_NAMES[int(np.argmax(lower >= upper))]
         raise ValueError(f"bound of {bad}: lower {base[bad][0]} is not below upper {base[bad][1]}")
-    if np.any(log_scale & (lower <= 0)):
-        bad = PARAMETER_NAMES[int(np.argmax(log_scale & (lower <= 0)))]
+    if np.any((scale == LOG10) & (lower <= 0)):
+        bad = PARAMETER_NAMES[int(np.argmax((scale == LOG10) & (lower <= 0)))]
         raise ValueError(f"{bad} is searched in log10, so its lower bound must be positive")
-    return Bounds(lower, upper, log_scale)
+    return Bounds(lower, upper, scale)
+
+
+def scale_label(name: str, scale) -> str:
+    """How a parameter's search coordinate is labelled: ``log10 kb``, ``asinh b``, ``kr``."""
+    prefix = {LINEAR: "", LOG10: "log10 ", ASINH: "asinh "}[int(scale)]
+    return prefix + name
 
 
 # The transforms below compute in NumPy when given host arrays (no JAX dispatch: a new
 # process compiles nothing for them) and in JAX when given JAX arrays or tracers.
 
 
-def _transformed(bounds: Bounds, xp):
-    lower = xp.where(bounds.log_scale, xp.log10(xp.abs(bounds.lower)), bounds.lower)
-    upper = xp.where(bounds.log_scale, xp.log10(xp.abs(bounds.upper)), bounds.upper)
-    return lower, upper
+def scaled(params, bounds: Bounds) -> jax.Array:
+    """Each parameter on its search scale: log10, asinh or itself (last axis 5)."""
+    xp = array_module(params, *bounds)
+    params, log10 = xp.asarray(params), bounds.scale == LOG10
+    return xp.where(log10, xp.log10(xp.where(log10, xp.abs(params), 1.0)),
+                    xp.where(bounds.scale == ASINH, xp.arcsinh(params), params))
+
+
+def _unscaled(t, bounds: Bounds, xp):
+    return xp.where(bounds.scale == LOG10, 10.0**t,
+                    xp.where(bounds.scale == ASINH, xp.sinh(t), t))
 
 
 def from_unit(z, bounds: Bounds) -> jax.Array:
     """Physical parameters from unit-cube coordinates z (last axis 5)."""
     xp = array_module(z, *bounds)
-    lower, upper = _transformed(bounds, xp)
-    t = lower + (upper - lower) * z
-    return xp.where(bounds.log_scale, 10.0**t, t)
+    lower, upper = scaled(bounds.lower, bounds), scaled(bounds.upper, bounds)
+    return _unscaled(lower + (upper - lower) * z, bounds, xp)
 
 
 def to_unit(params, bounds: Bounds) -> jax.Array:
     """Unit-cube coordinates of physical parameters (inverse of `from_unit`)."""
-    xp = array_module(params, *bounds)
-    lower, upper = _transformed(bounds, xp)
-    params = xp.asarray(params)
-    t = xp.where(bounds.log_scale, xp.log10(xp.where(bounds.log_scale, xp.abs(params), 1.0)),
-                 params)
-    return (t - lower) / (upper - lower)
+    lower, upper = scaled(bounds.lower, bounds), scaled(bounds.upper, bounds)
+    return (scaled(params, bounds) - lower) / (upper - lower)
 
 
 def from_free(u, bounds: Bounds) -> jax.Array:

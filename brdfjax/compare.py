@@ -2,7 +2,7 @@
 
 Every method fits the same model (Eq. 5, evaluated by the same compiled function) to the
 same data, minimising the same E of Eq. (6) over the same box (`brdfjax.bounds`: log10 for
-kb, kr, a, kd; linear b), in one process:
+kb, kr, a, kd; asinh for b), in one process:
 
 - ``brdfjax hybrid``: genetic search, then Levenberg-Marquardt (the default);
 - ``brdfjax ga``: the genetic search alone;

@@ -1,10 +1,13 @@
 """Global search: a real-coded genetic algorithm in JAX, the whole run one compiled loop.
 
 The paper fits its five parameters with a genetic algorithm; this one searches the unit
-cube of `brdfjax.bounds` (log10 for the positive parameters) so that the degenerate basins
-of real data are reachable. Each generation:
+cube of `brdfjax.bounds` (log10 for the positive parameters, asinh for b) so that the
+degenerate basins of real data are reachable. Only (kr, a, b) are searched: f_r is linear
+in kb and kd, so every member gets their best values exactly (variable projection), and
+the search space shrinks from five dimensions to three. Each generation:
 
-1. the population is scored with one ``vmap`` of Eq. (6) (NaN counts as +inf);
+1. the population is scored with one ``vmap`` of Eq. (6), kb and kd solved (NaN counts
+   as +inf);
 2. the ``elite_count`` best members pass unchanged (elitism);
 3. parents are drawn by tournament (the best of ``tournament_size`` random members);
 4. children are blends ``p1 + beta (p2 - p1)`` with ``beta ~ U(-0.5, 1.5)`` per gene
@@ -24,9 +27,9 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from brdfjax.bounds import Bounds, from_unit
+from brdfjax.bounds import Bounds, from_unit, to_unit
 from brdfjax.cache import stage
-from brdfjax.objective import Problem, error
+from brdfjax.objective import Problem, linear_coefficients
 
 BLEND_EXTENT = 0.5  # BLX-alpha with alpha = 0.5: children may land beyond either parent
 
@@ -56,16 +59,33 @@ class EvolveResult(NamedTuple):
     generations: jax.Array
 
 
-def population_errors(z, prob: Problem, bounds: Bounds) -> jax.Array:
-    """E of every member of a unit-cube population (N, 5); NaN becomes +inf."""
-    values = jax.vmap(lambda member: error(from_unit(member, bounds), prob))(z)
-    return jnp.where(jnp.isnan(values), jnp.inf, values)
+def score_population(z, prob: Problem, bounds: Bounds) -> tuple[jax.Array, jax.Array]:
+    """Score a unit-cube population (N, 5), solving each member's kb and kd exactly.
+
+    Only (kr, a, b) are searched: f_r is linear in kb and kd, and
+    `brdfjax.objective.linear_coefficients` gives their best values within the bounds.
+    Those replace the members' kb and kd genes, so the returned population is
+    consistent with its errors.
+
+    Returns:
+        The updated population and the E of each member (NaN becomes +inf).
+    """
+
+    def one(member):
+        kb, kr, a, b, kd = from_unit(member, bounds)
+        kb, kd, value = linear_coefficients((kr, a, b), prob, bounds.lower[::4],
+                                            bounds.upper[::4])
+        solved = to_unit(jnp.stack([kb, kr, a, b, kd]), bounds)
+        return jnp.where(jnp.isfinite(solved), solved, member), value
+
+    z, values = jax.vmap(one)(z)
+    return z, jnp.where(jnp.isnan(values), jnp.inf, values)
 
 
 @stage(static_argnames=("population_size", "islands", "max_generations", "elite_count",
                         "tournament_size", "patience", "precision"))
 def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = None, *,
-           population_size: int = 256, islands: int = 8, max_generations: int = 40,
+           population_size: int = 128, islands: int = 8, max_generations: int = 40,
            elite_count: int = 4, tournament_size: int = 3, patience: int = 15,
            precision: str = "float32") -> EvolveResult:
     """Run the genetic algorithm on one problem, as ``islands`` independent populations.
@@ -107,8 +127,9 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
     size = population_size // islands
 
     def score(z):
-        """E of every member of every island: one flat vmap, the fastest layout on CPU."""
-        return population_errors(z.reshape(-1, 5), prob, bounds).reshape(z.shape[:-1])
+        """Score every member of every island: one flat vmap, the fastest layout on CPU."""
+        scored, errors = score_population(z.reshape(-1, 5), prob, bounds)
+        return scored.reshape(z.shape), errors.reshape(z.shape[:-1])
 
     def sort(z, errors):
         order = jnp.argsort(errors, axis=-1)
@@ -138,8 +159,9 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
         generation, key, z, errors, history, stalled, best = state
         key, sub = jax.random.split(key)
         children = jax.vmap(breed)(jax.random.split(sub, islands), z)
+        children, child_errors = score(children)
         z, errors = sort(jnp.concatenate([z[:, :elite_count], children], axis=1),
-                         jnp.concatenate([errors[:, :elite_count], score(children)], axis=1))
+                         jnp.concatenate([errors[:, :elite_count], child_errors], axis=1))
         improved = errors[:, 0] < best * (1 - config.tolerance)
         stalled = jnp.where(improved, 0, stalled + 1)
         history = history.at[generation].set(errors[:, 0].min())
@@ -147,7 +169,7 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
 
     init_key, loop_key = jax.random.split(key)
     z = jax.random.uniform(init_key, (islands, size, 5), dtype=dtype)
-    z, errors = sort(z, score(z))
+    z, errors = sort(*score(z))
     state = (jnp.asarray(0), loop_key, z, errors, jnp.full(max_generations, jnp.nan, dtype),
              jnp.zeros(islands, dtype=int), errors[:, 0])
     generations, _, z, errors, history, _, _ = jax.lax.while_loop(condition, step, state)

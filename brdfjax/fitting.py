@@ -115,7 +115,7 @@ def _degrees(values) -> str:
 
 def fit(data: Measurements, method: str = "hybrid", *, seed: int = 0,
         validate_incidences=None, bounds: Bounds | None = None, start=None,
-        starts: int = 16, population_size: int = 256, max_generations: int = 40,
+        starts: int = 16, population_size: int = 128, max_generations: int = 40,
         max_steps: int = 1000, config: EvolveConfig | None = None,
         constants: ShadowingConstants = PAPER_CONSTANTS) -> FitResult:
     """Fit the five-parameter model to measurements by minimising E of Eq. (6).

@@ -1,7 +1,7 @@
 """Laplace approximation of the posterior at its mode: error bars in milliseconds.
 
 The posterior of `brdfjax.posterior` (Gaussian likelihood on the projected BRDF, prior
-uniform in the fit's unit-cube coordinates ``z``: log10 of kb, kr, a, kd and linear b) is
+uniform in the fit's unit-cube coordinates ``z``: log10 of kb, kr, a, kd and asinh b) is
 approximated by a Gaussian at its mode ``x*`` whose inverse covariance is the expected
 Fisher information of the Gaussian likelihood,
 
@@ -15,7 +15,7 @@ stated (a chi-square per degree of freedom far from 1 is reported as a warning).
 
 The physical covariance is linearised, ``C_p = D C_z D`` with ``D = diag(dp/dz)``; the
 intervals are Gaussian quantiles in ``z`` mapped through the bounds' transform, so they are
-asymmetric (and positive) for the log10 parameters.
+asymmetric for the log10 parameters (and positive) and for asinh b.
 
 The mode is not the fit's optimum: Eq. (6) weights every point alike, the likelihood by
 ``1 / v``. So the fit's parameters are polished again with Levenberg-Marquardt

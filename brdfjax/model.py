@@ -86,14 +86,23 @@ def evaluate(params, geometry: Scene) -> jax.Array:
         The BRDF (1/sr), with the scene's shape.
     """
     kb, kr, a, b, kd = (as_vector(params)[k] for k in range(5))
+    return kb * lobe(kr, a, b, geometry) + kd
+
+
+def lobe(kr, a, b, geometry: Scene, offset=0.0) -> jax.Array:
+    """The specular term of Eq. (5) per unit kb, ``D R0 G / cos(tr)``, times ``exp(-offset)``.
+
+    f_r is linear in kb and kd, so a search over (kr, a, b) can solve for them exactly
+    (`brdfjax.objective.linear_coefficients`). An ``offset`` of ``max(b, 0)`` keeps the
+    lobe finite however large b is (``R0 <= exp(max(b, 0))``).
+    """
     kr2 = kr * kr
     cos_alpha = geometry.cos_alpha
     facets = kr2 * cos_alpha / (geometry.sin2_alpha + kr2 * cos_alpha**2)
     # (1 - cos g)^a, exactly 0 at back-scatter with a finite derivative in a there.
     power = jnp.where(geometry.is_backscatter, 0.0,
                       jnp.exp(a * geometry.log_one_minus_cos_gamma))
-    fresnel = jnp.exp(b * power)
-    return kb * facets * fresnel * geometry.shadowing + kd
+    return facets * jnp.exp(b * power - offset) * geometry.shadowing
 
 
 def evaluate_projected(params, geometry: Scene) -> jax.Array:

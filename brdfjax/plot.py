@@ -107,23 +107,22 @@ def plot_hemisphere(params, incidences_deg, path, title: str = "", resolution: i
 
 
 def _corner_coordinates(result) -> tuple[np.ndarray, list]:
-    """A result's draws in the prior's coordinates (log10 for log-scale parameters), labelled."""
+    """A result's draws in the prior's coordinates (log10 kb, asinh b, ...), labelled."""
+    from brdfjax.bounds import scale_label, scaled
     from brdfjax.model import PARAMETER_NAMES
 
-    log_scale = np.asarray(result.bounds.log_scale, dtype=bool)
-    samples = np.asarray(result.samples, dtype=float)
     with np.errstate(divide="ignore"):
-        values = np.where(log_scale, np.log10(np.abs(samples)), samples)
+        values = scaled(np.asarray(result.samples, dtype=float), result.bounds)
     values = values[np.all(np.isfinite(values), axis=1)]
-    labels = [f"log10 {n}" if log else n for n, log in zip(PARAMETER_NAMES, log_scale)]
+    labels = [scale_label(n, k) for n, k in zip(PARAMETER_NAMES, result.bounds.scale)]
     return values, labels
 
 
 def plot_corner(results, path, title: str = "", truths=None, names=None):
     """Corner plot of the posterior of (kb, kr, a, b, kd), one or more results overlaid.
 
-    Log-scale parameters are drawn as log10, the coordinates the prior is uniform in, where
-    the posterior is closest to Gaussian; contours enclose 39 % and 86 % (one and two
+    Each parameter is drawn on its search scale (log10 kb, asinh b, ...), the coordinates
+    the prior is uniform in, where the posterior is closest to Gaussian; contours enclose 39 % and 86 % (one and two
     standard deviations of a 2-D Gaussian).
 
     Args:
@@ -151,9 +150,9 @@ def plot_corner(results, path, title: str = "", truths=None, names=None):
                             plot_density=False, fill_contours=False, smooth=1.0,
                             hist_kwargs={"density": True})
     if truths is not None:
-        log_scale = np.asarray(results[0].bounds.log_scale, dtype=bool)
-        truths = np.asarray(truths, dtype=float)
-        corner.overplot_lines(fig, np.where(log_scale, np.log10(np.abs(truths)), truths),
+        from brdfjax.bounds import scaled
+
+        corner.overplot_lines(fig, scaled(np.asarray(truths, dtype=float), results[0].bounds),
                               color="black", lw=1)
     fig.legend(handles=[plt.Line2D([], [], color=colours[k], label=name)
                         for k, name in enumerate(names)]

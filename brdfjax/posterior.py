@@ -12,7 +12,7 @@ parameters, not assumed. The Eq. (6) weights are a choice of fit objective, not 
 about noise, so the likelihood does not use them (points of weight zero are left out).
 
 Prior, stated plainly: uniform in the coordinates the fit searches, i.e. uniform on the unit
-cube of `brdfjax.bounds` (log10 of kb, kr, a, kd and linear b, within the bounds), and, for
+cube of `brdfjax.bounds` (log10 of kb, kr, a, kd and asinh b, within the bounds), and, for
 the noise model, uniform in log10 s_rel on [1e-4, 1] and in log10 s_abs on
 [1e-8, 1] x max|y|; zero outside. The posterior is therefore the likelihood restricted to
 that box, and its mode is the maximum-likelihood point.
@@ -249,7 +249,8 @@ class UncertaintyResult:
         ci68, ci95: central 68.27 % and 95 % credible intervals (5, 2).
         covariance: physical covariance (5, 5) (Laplace: linearised).
         correlation: correlation (5, 5) of the prior's coordinates (log10 kb, kr, a, kd and
-            b); for Laplace it equals the linearised correlation of the physical parameters.
+            asinh b); for Laplace it equals the linearised correlation of the physical
+            parameters.
         samples: physical parameter draws (S, 5): posterior samples, or draws from the
             Laplace Gaussian; bands are computed from them.
         noise: the noise model and, if inferred, each scale's median and 95 % interval.

@@ -1,14 +1,18 @@
 """Fitting: recovery of known parameters, reproducibility, status, and no recompilation."""
 
+import jax
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.optimize import lsq_linear
 from transcription import brdf as transcribed
 
-from brdfjax.bounds import default_bounds, from_free, make_bounds, to_free, to_unit
+from brdfjax.bounds import default_bounds, from_free, from_unit, make_bounds, to_free, to_unit
 from brdfjax.evolve import evolve
 from brdfjax.fitting import fit
 from brdfjax.model import PAPER_SAMPLES
-from brdfjax.objective import _scene
+from brdfjax.objective import _scene, linear_coefficients, problem, projected
 from brdfjax.polish import polish, polish_population
 from brdfjax.synthetic import paper_sample
 
@@ -101,10 +105,47 @@ def test_bound_transforms_round_trip():
     np.testing.assert_allclose(from_free(to_free(p, bounds), bounds), p, rtol=1e-12)
     z = np.asarray(to_unit(p, bounds))
     assert np.all((z > 0) & (z < 1))
+    # b on the asinh scale: b = 0 sits where asinh(0) = 0 falls between asinh of the bounds
+    low, high = np.arcsinh(-150.0), np.arcsinh(80.0)
+    assert to_unit(np.array([1.0, 1.0, 1.0, 0.0, 1.0]), bounds)[3] == pytest.approx(
+        -low / (high - low), rel=1e-14)
+    linear = make_bounds({"b": (-4.0, 6.0)}, scales={"b": "linear"})
+    assert from_unit(np.full(5, 0.25), linear)[3] == pytest.approx(-1.5, rel=1e-14)
     with pytest.raises(ValueError, match="lower bound must be positive"):
         make_bounds({"kb": (0.0, 1.0)})
     with pytest.raises(ValueError, match="unknown parameter"):
         make_bounds({"kx": (0.0, 1.0)})
+    with pytest.raises(ValueError, match="unknown scale"):
+        make_bounds({}, scales={"b": "log"})
+
+
+LINEAR_SOLVE = jax.jit(linear_coefficients)
+
+
+@settings(max_examples=60, deadline=None)
+@given(kr=st.floats(1e-2, 1e2), a=st.floats(1e-2, 1e2), b=st.floats(-150.0, 80.0),
+       kd_range=st.sampled_from([(1e-8, 1e2), (0.3, 1.0), (1e-8, 0.05)]),
+       kb_range=st.sampled_from([(1e-14, 1e3), (0.5, 2.0)]))
+def test_linear_coefficients_match_bounded_least_squares(white_paint, kr, a, b, kd_range,
+                                                         kb_range):
+    """kb, kd and E of the exact 2-D solve equal SciPy's bounded linear least squares."""
+    prob = problem(white_paint.at_incidences([10, 30]))
+    kb, kd, e = map(float, LINEAR_SOLVE((kr, a, b), prob, np.array([kb_range[0], kd_range[0]]),
+                                        np.array([kb_range[1], kd_range[1]])))
+    # SciPy on the same columns: the projected lobe (kb = 1, kd = 0) and cos(tr)
+    lobe = np.asarray(projected(np.array([1.0, kr, a, b, 0.0]), prob.scene))
+    root = np.sqrt(np.asarray(prob.weight))
+    scale = max(np.max(np.abs(lobe)), 1e-300)  # SciPy needs columns of comparable size
+    columns = root[:, None] * np.stack([lobe / scale, np.asarray(prob.scene.cos_theta_r)], 1)
+    reference = lsq_linear(columns, root * np.asarray(prob.target), method="bvls", tol=1e-14,
+                           bounds=([kb_range[0] * scale, kd_range[0]],
+                                   [kb_range[1] * scale, kd_range[1]]))
+    e_scipy = float(np.sum(reference.fun**2))
+    e_direct = float(np.sum(np.asarray(prob.weight) * (
+        np.asarray(projected(np.array([kb, kr, a, b, kd]), prob.scene)) - prob.target) ** 2))
+    assert kb_range[0] <= kb <= kb_range[1] and kd_range[0] <= kd <= kd_range[1]
+    assert e == pytest.approx(e_direct, rel=1e-9, abs=1e-14)
+    assert e_direct <= e_scipy * (1 + 1e-9) + 1e-14
 
 
 def test_evolve_takes_a_seed_a_typed_key_or_a_legacy_key():

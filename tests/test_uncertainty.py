@@ -37,12 +37,19 @@ from brdfjax.synthetic import paper_sample
 
 TRUTH = np.array(PAPER_SAMPLES["white_paint"], dtype=float)
 HELD_OUT = [21, 52]
-LOG_SCALE = np.array([True, True, True, False, True])
+LOG_SCALE = np.array([True, True, True, False, True])  # and asinh for b
 
 
-def log_coordinates(params):
-    """log10 of kb, kr, a, kd and b as it is: where the prior is uniform (up to scale)."""
-    return np.where(LOG_SCALE, np.log10(np.abs(params)), params)
+def prior_coordinates(params):
+    """log10 of kb, kr, a, kd and asinh b: where the prior is uniform (up to scale)."""
+    return np.where(LOG_SCALE, np.log10(np.abs(params)), np.arcsinh(params))
+
+
+def std_in_prior_coordinates(result):
+    """A result's linearised physical std carried to `prior_coordinates` (d/dp of each)."""
+    mode = result.median
+    return np.where(LOG_SCALE, result.std / (mode * np.log(10)),
+                    result.std / np.sqrt(1 + mode**2))
 
 
 @pytest.fixture(scope="module")
@@ -117,29 +124,27 @@ def test_noise_scales_match_a_direct_maximisation(training):
 def test_laplace_matches_finite_differences(training, white_laplace):
     assert white_laplace.method == "laplace" and white_laplace.status == "ok"
     mode = white_laplace.median
-    t0 = log_coordinates(mode)
+    t0 = prior_coordinates(mode)
     cos_r = np.cos(training.theta_r)
 
     def weighted_residuals(t):
-        params = np.where(LOG_SCALE, 10.0**t, t)
+        params = np.where(LOG_SCALE, 10.0**t, np.sinh(t))
         model = np.asarray(projected_brdf(params, training.theta_i, training.theta_r,
                                           training.phi_r))
         return (model - training.brdf * cos_r) / (training.sigma * cos_r)
 
-    # Laplace's physical std back to the log10 coordinates: std_log10 = std / (p ln 10).
-    laplace_log = np.where(LOG_SCALE, white_laplace.std / (mode * np.log(10)),
-                           white_laplace.std)
+    laplace_std = std_in_prior_coordinates(white_laplace)
     # The same quantity, (J^T J)^-1 with J by central differences: to rounding.
     jacobian = np.stack([(weighted_residuals(t0 + h) - weighted_residuals(t0 - h)) / (2 * h[k])
                          for k, h in enumerate(np.diag(1e-6 * np.maximum(np.abs(t0), 1)))],
                         axis=1)
-    np.testing.assert_allclose(laplace_log, np.sqrt(np.diag(np.linalg.inv(jacobian.T @ jacobian))),
+    np.testing.assert_allclose(laplace_std, np.sqrt(np.diag(np.linalg.inv(jacobian.T @ jacobian))),
                                rtol=1e-5)
     # The mode: there the chi-square gradient J^T r vanishes (relative to its scale).
     information = jacobian.T @ jacobian
     scale = np.sqrt(np.diag(information))
     assert np.all(np.abs(jacobian.T @ weighted_residuals(t0)) < 1e-4 * scale)
-    # The condition number of the correlation form does not depend on log or linear scaling.
+    # The condition number of the correlation form does not depend on each axis's scaling.
     assert white_laplace.diagnostics["condition_number"] == pytest.approx(
         np.linalg.cond(information / np.outer(scale, scale)), rel=1e-4)
 
@@ -148,7 +153,7 @@ def test_laplace_matches_finite_differences(training, white_laplace):
     def half_chi2(t):
         return 0.5 * np.sum(weighted_residuals(t) ** 2)
 
-    step = 0.5 * laplace_log  # chi-square is near quadratic over a standard deviation
+    step = 0.5 * laplace_std  # chi-square is near quadratic over a standard deviation
     hessian = np.empty((5, 5))
     for i in range(5):
         for j in range(5):
@@ -156,12 +161,12 @@ def test_laplace_matches_finite_differences(training, white_laplace):
             hessian[i, j] = (half_chi2(t0 + ei + ej) - half_chi2(t0 + ei - ej)
                              - half_chi2(t0 - ei + ej) + half_chi2(t0 - ei - ej)) / (
                                  4 * step[i] * step[j])
-    np.testing.assert_allclose(laplace_log, np.sqrt(np.diag(np.linalg.inv(hessian))), rtol=0.1)
-    # Intervals: the 95 % one is 1.96 / 1.00 times the 68 % one in log10 coordinates.
-    width68 = np.diff(log_coordinates(white_laplace.ci68.T), axis=0)[0]
-    width95 = np.diff(log_coordinates(white_laplace.ci95.T), axis=0)[0]
+    np.testing.assert_allclose(laplace_std, np.sqrt(np.diag(np.linalg.inv(hessian))), rtol=0.1)
+    # Intervals: the 95 % one is 1.96 / 1.00 times the 68 % one in the prior's coordinates.
+    width68 = np.diff(prior_coordinates(white_laplace.ci68.T), axis=0)[0]
+    width95 = np.diff(prior_coordinates(white_laplace.ci95.T), axis=0)[0]
     np.testing.assert_allclose(width95 / width68, 1.959964, rtol=1e-5)
-    np.testing.assert_allclose(width68, 2 * laplace_log, rtol=1e-5)
+    np.testing.assert_allclose(width68, 2 * laplace_std, rtol=1e-5)
 
 
 def test_laplace_std_matches_the_spread_of_refits(training, white_laplace):
@@ -171,12 +176,10 @@ def test_laplace_std_matches_the_spread_of_refits(training, white_laplace):
         data = split(paper_sample("white_paint", seed=100 + seed), HELD_OUT)[0]
         weighted = dataclasses.replace(data, weights=1 / (data.sigma * np.cos(data.theta_r)) ** 2)
         fits.append(fit(weighted, "lm", start=TRUTH).vector)
-    spread = np.std(log_coordinates(np.array(fits)), axis=0, ddof=1)
-    mode = white_laplace.median
-    laplace_log = np.where(LOG_SCALE, white_laplace.std / (mode * np.log(10)),
-                           white_laplace.std)
+    spread = np.std(prior_coordinates(np.array(fits)), axis=0, ddof=1)
+    laplace_std = std_in_prior_coordinates(white_laplace)
     # 40 replicates estimate a standard deviation to about 11 %: allow three times that.
-    np.testing.assert_allclose(spread, laplace_log, rtol=0.35)
+    np.testing.assert_allclose(spread, laplace_std, rtol=0.35)
 
 
 def test_laplace_is_fast_when_warm(white_paint, white_fit, white_laplace):
