@@ -289,7 +289,8 @@ def across_samples(function, scene: Scene, arrays: tuple, batch: int | None):
     def one(item):
         return function(scene, *item) if shared else function(*item)
 
-    return jax.lax.map(one, mapped, batch_size=batch)
+    # batch_size=1 would still vmap each sample (over an axis of one), which costs more
+    return jax.lax.map(one, mapped, batch_size=None if batch == 1 else batch)
 
 
 def use_every_core() -> list:
