@@ -74,10 +74,12 @@ def population_row(data, dtype, repeats):
 def bench_population(repeats):
     data = white_paint_train()
     rows = [population_row(data, dtype, repeats) for dtype in (jnp.float64, jnp.float32)]
-    write_section("population", "## Population evaluation (E of Eq. 6 for every member)\n\n"
-                  "Geometry terms precomputed once per data set (`brdfjax.geometry.Scene`); "
-                  "each point-evaluation is the parameter-dependent part of Eq. (5) plus its "
-                  "share of the weighted sum.\n\n"
+    write_section("population", "## Population evaluation (the genetic search's scoring)\n\n"
+                  "`brdfjax.evolve.score_population`: for every member, kb and kd solved "
+                  "exactly for its (kr, a, b), then E of Eq. (6). Geometry terms "
+                  "precomputed once per data set (`brdfjax.geometry.Scene`); each "
+                  "point-evaluation is the parameter-dependent part of Eq. (5) plus its "
+                  "share of the six weighted sums.\n\n"
                   "| dtype | members x points | time (ms) | ns per point-evaluation |\n"
                   "|---|---|---|---|\n" + "\n".join(rows))
 

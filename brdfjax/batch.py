@@ -12,8 +12,8 @@ distinct good members), but as one compiled call per chunk of samples:
    whose samples all share one geometry passes that scene once (``vmap`` with
    ``in_axes=None``), any other chunk passes one scene per sample.
 3. Ragged data are padded, not looped over: point counts are padded to the next multiple of
-   `POINT_BUCKET` with zero-weight copies of the sample's first point (a valid geometry, so
-   every scene value stays finite, and zero weight, so E is unchanged), and a chunk's
+   `brdfjax.objective.POINT_BUCKET` with zero-weight copies of the sample's first point
+   (as a single fit pads them), then to the chunk's largest sample, and a chunk's
    sample count to a power of two (at most ``chunk_size``) and a multiple of the device
    count, with copies of its first sample whose results are dropped. Compilations are so
    bounded to one per (sample bucket, point bucket, shared geometry or not) and device
@@ -58,12 +58,9 @@ from brdfjax.fitting import FitResult, fit, fit_result, polish_summary, search_s
 from brdfjax.geometry import Scene, ShadowingConstants
 from brdfjax.measurements import DataError, Measurements, validate
 from brdfjax.model import Params
-from brdfjax.objective import Problem, prepare, problem
+from brdfjax.objective import Problem, bucket, pad, padded_scene, prepare, problem
 from brdfjax.polish import PolishResult, polish_population
 
-# Point counts are padded up to a multiple of this: ragged catalogues compile once per
-# bucket, and at most 63 zero-weight points are carried (9 % extra work at 716 points).
-POINT_BUCKET = 64
 # The single fit's own defaults, read from its signature: a batched fit is the fit that
 # `brdfjax.fitting.fit` gives each sample, whatever those defaults become.
 FIT_DEFAULTS = {name: inspect.signature(fit).parameters[name].default
@@ -126,8 +123,9 @@ def fit_batch(samples: Sequence[Measurements], *, seed: int | Sequence[int] = 0,
             data = samples[index]
             try:
                 validate(data, path=data.name)
-                if keys[index] not in scenes:
-                    scenes[keys[index]] = prepare(data, constants)
+                if keys[index] not in scenes:  # padded once, shared by its samples
+                    scenes[keys[index]] = padded_scene(prepare(data, constants),
+                                                       bucket(len(data)))
                 problems[index] = problem(data, constants, geometry=scenes[keys[index]])
             except (DataError, ValueError) as error:
                 results[index] = _failed(data, str(error), bounds, constants)
@@ -193,16 +191,16 @@ def _run_chunk(problems: list[Problem], seeds, bounds, config, devices, chunk_si
     devices = devices[:count]
     lanes = min(chunk_size, 1 << (count - 1).bit_length())
     lanes = -(-max(lanes, count) // len(devices)) * len(devices)
-    points = POINT_BUCKET * -(-max(p.target.size for p in problems) // POINT_BUCKET)
+    points = max(p.target.size for p in problems)  # each already a multiple of POINT_BUCKET
     chosen = list(range(count)) + [0] * (lanes - count)
     shared = all(p.scene is problems[0].scene for p in problems)
-    targets = np.stack([_pad(problems[i].target, points, 0.0) for i in chosen])
-    weights = np.stack([_pad(problems[i].weight, points, 0.0) for i in chosen])
+    targets = np.stack([pad(problems[i].target, points, 0.0) for i in chosen])
+    weights = np.stack([pad(problems[i].weight, points, 0.0) for i in chosen])
     if shared:
-        scene = Scene(*(_pad(x, points) for x in problems[0].scene))
+        scene = padded_scene(problems[0].scene, points)
     else:
         scene = Scene(*(np.stack(fields) for fields in zip(
-            *([_pad(x, points) for x in problems[i].scene] for i in chosen))))
+            *(padded_scene(problems[i].scene, points) for i in chosen))))
     config = EvolveConfig() if config is None else config
     block = lanes // len(devices)
     running = []  # dispatched to every device before any result is awaited
@@ -219,14 +217,6 @@ def _run_chunk(problems: list[Problem], seeds, bounds, config, devices, chunk_si
 def _block(values, number: int, size: int):
     """The ``number``-th block of ``size`` samples of an array with a leading sample axis."""
     return values[number * size:(number + 1) * size]
-
-
-def _pad(values, length: int, fill=None) -> np.ndarray:
-    """``values`` (N,) extended to ``length`` with ``fill``, or with its first value."""
-    values = np.asarray(values)
-    extra = np.full(length - values.size, values[0] if fill is None else fill,
-                    dtype=values.dtype)
-    return np.concatenate([values, extra])
 
 
 @partial(jax.jit, static_argnames=("population_size", "max_generations", "starts",

@@ -73,8 +73,7 @@ def score_population(z, prob: Problem, bounds: Bounds) -> tuple[jax.Array, jax.A
 
     def one(member):
         kb, kr, a, b, kd = from_unit(member, bounds)
-        kb, kd, value = linear_coefficients((kr, a, b), prob, bounds.lower[::4],
-                                            bounds.upper[::4])
+        kb, kd, value = linear_coefficients((kr, a, b), prob, bounds)
         solved = to_unit(jnp.stack([kb, kr, a, b, kd]), bounds)
         return jnp.where(jnp.isfinite(solved), solved, member), value
 

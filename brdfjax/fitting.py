@@ -219,10 +219,11 @@ def fit_result(data, train, held, vector, bounds, constants, geometry=None,
                **details) -> FitResult:
     """A `FitResult` for ``vector``: E overall, per incidence and held out, from one model
     evaluation of ``data`` (split into ``train`` and ``held``; ``geometry`` is the scene of
-    ``data`` where already computed); ``details`` fill the rest (status, timings, ...).
+    ``data``, padded or not, where already computed); ``details`` fill the rest (status,
+    timings, ...).
     `brdfjax.batch` builds each sample's result with it too."""
     geometry = prepare(data, constants) if geometry is None else geometry
-    model = np.asarray(projected(vector, geometry))
+    model = np.asarray(projected(vector, geometry))[:len(data)]  # a fit's scene is padded
     target, weight = targets(data)
     is_held = data.incidence_mask(held.incidences_deg)
     theta = np.round(np.degrees(data.theta_i), 6)

@@ -18,6 +18,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from brdfjax.bounds import Bounds
 from brdfjax.cache import stage
 from brdfjax.geometry import PAPER_CONSTANTS, Scene, ShadowingConstants, scene
 from brdfjax.measurements import Measurements
@@ -39,6 +40,30 @@ class Problem(NamedTuple):
 
 
 _scene = stage(scene, static_argnames=("constants", "in_plane"))
+
+# Fitted point counts are padded up to a multiple of this with zero-weight copies of the
+# first point (a valid geometry, so every value stays finite; zero weight, so E is
+# unchanged). Data of nearby sizes then share compiled code, and a sample fitted alone
+# runs exactly the arithmetic it runs in a batch (`brdfjax.batch`).
+POINT_BUCKET = 64
+
+
+def bucket(count: int) -> int:
+    """``count`` rounded up to a multiple of `POINT_BUCKET`."""
+    return POINT_BUCKET * -(-count // POINT_BUCKET)
+
+
+def pad(values, length: int, fill=None) -> np.ndarray:
+    """``values`` (N,) extended to ``length`` with ``fill``, or with its first value."""
+    values = np.asarray(values)
+    extra = np.full(length - values.size, values[0] if fill is None else fill,
+                    dtype=values.dtype)
+    return np.concatenate([values, extra])
+
+
+def padded_scene(geometry: Scene, length: int) -> Scene:
+    """A scene extended to ``length`` points with copies of its first point."""
+    return Scene(*(pad(x, length) for x in geometry))
 
 
 def prepare(data: Measurements, constants: ShadowingConstants = PAPER_CONSTANTS,
@@ -68,18 +93,24 @@ def problem(data: Measurements, constants: ShadowingConstants = PAPER_CONSTANTS,
             dtype=jnp.float64, geometry: Scene | None = None) -> Problem:
     """The objective's view of a measurement set: scene, target, normalised weights.
 
+    The arrays are padded to ``bucket(len(data))`` points of zero weight.
+
     Args:
         data: the measurements.
         constants: the shadowing constants of Eq. (3).
         dtype: float64 for fitting; float32 halves the cost of a population evaluation.
-        geometry: the scene of ``data`` if already computed.
+        geometry: the scene of ``data`` if already computed, padded or not.
     """
+    points = bucket(len(data))
     geometry = prepare(data, constants, dtype) if geometry is None else geometry
+    if geometry.cos_alpha.shape[-1] != points:
+        geometry = padded_scene(geometry, points)
     target, weight = targets(data)
     denominator = np.sum(weight * target**2)
     if not denominator > 0:
         raise ValueError(f"{data.name}: every weighted measurement is zero; nothing to fit")
-    return Problem(geometry, jnp.asarray(target, dtype), jnp.asarray(weight / denominator, dtype))
+    return Problem(geometry, jnp.asarray(pad(target, points, 0.0), dtype),
+                   jnp.asarray(pad(weight / denominator, points, 0.0), dtype))
 
 
 def residuals(params, prob: Problem) -> jax.Array:
@@ -92,8 +123,8 @@ def error(params, prob: Problem) -> jax.Array:
     return jnp.sum(prob.weight * (evaluate_projected(params, prob.scene) - prob.target) ** 2)
 
 
-def linear_coefficients(shape, prob: Problem, lower, upper):
-    """The kb and kd inside [lower, upper] that minimise E for fixed (kr, a, b).
+def linear_coefficients(shape, prob: Problem, bounds: Bounds):
+    """The kb and kd within their bounds that minimise E for fixed (kr, a, b).
 
     f_r cos(tr) = kb s + kd cos(tr), with s the projected `brdfjax.model.lobe`, so E is a
     convex quadratic in (kb, kd). Its minimum over the box is the unconstrained minimum
@@ -106,7 +137,7 @@ def linear_coefficients(shape, prob: Problem, lower, upper):
     Args:
         shape: (kr, a, b).
         prob: the measurement set.
-        lower, upper: bounds of (kb, kd).
+        bounds: the search box (only kb's and kd's bounds are used).
 
     Returns:
         (kb, kd, E).
@@ -121,7 +152,8 @@ def linear_coefficients(shape, prob: Problem, lower, upper):
     sc, st = jnp.stack([w * c, w * t]) @ s  # a matrix product under vmap
     ss, cc, ct, tt = jnp.sum(w * s * s), jnp.sum(w * c * c), jnp.sum(w * c * t), jnp.sum(w * t * t)
     to_x = jnp.exp(offset) * peak
-    lo, hi = jnp.stack([lower[0] * to_x, lower[1]]), jnp.stack([upper[0] * to_x, upper[1]])
+    (kb_low, kd_low), (kb_high, kd_high) = bounds.lower[::4], bounds.upper[::4]
+    lo, hi = jnp.stack([kb_low * to_x, kd_low]), jnp.stack([kb_high * to_x, kd_high])
 
     def y_given(x):
         return jnp.clip((ct - sc * x) / cc, lo[1], hi[1])
@@ -143,4 +175,4 @@ def linear_coefficients(shape, prob: Problem, lower, upper):
     e = jnp.where(valid & ~jnp.isnan(e), e, jnp.inf)
     best = jnp.argmin(e)
     x, y = candidates[best]
-    return jnp.clip(x / to_x, lower[0], upper[0]), y, jnp.maximum(e[best], 0.0)
+    return jnp.clip(x / to_x, kb_low, kb_high), y, jnp.maximum(e[best], 0.0)

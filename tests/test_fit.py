@@ -130,8 +130,8 @@ def test_linear_coefficients_match_bounded_least_squares(white_paint, kr, a, b, 
                                                          kb_range):
     """kb, kd and E of the exact 2-D solve equal SciPy's bounded linear least squares."""
     prob = problem(white_paint.at_incidences([10, 30]))
-    kb, kd, e = map(float, LINEAR_SOLVE((kr, a, b), prob, np.array([kb_range[0], kd_range[0]]),
-                                        np.array([kb_range[1], kd_range[1]])))
+    bounds = make_bounds({"kb": kb_range, "kd": kd_range})
+    kb, kd, e = map(float, LINEAR_SOLVE((kr, a, b), prob, bounds))
     # SciPy on the same columns: the projected lobe (kb = 1, kd = 0) and cos(tr)
     lobe = np.asarray(projected(np.array([1.0, kr, a, b, 0.0]), prob.scene))
     root = np.sqrt(np.asarray(prob.weight))
