@@ -130,7 +130,7 @@ def linear_coefficients(shape, prob: Problem, bounds: Bounds):
     convex quadratic in (kb, kd). Its minimum over the box is the unconstrained minimum
     when that lies inside, else the best of the four edges, where each is a clipped 1-D
     minimum: exact, without iterating (variable projection, Golub and Pereyra 1973).
-    E then follows from five weighted sums, without a second pass over the points.
+    E then follows from six weighted sums, without a second pass over the points.
     The lobe is scaled to a maximum of 1, so that a huge ``exp(b ...)`` balanced by a
     tiny kb (real black coatings) neither overflows nor loses precision in float32.
 
@@ -150,7 +150,8 @@ def linear_coefficients(shape, prob: Problem, bounds: Bounds):
     peak = jnp.where(peak > 0, peak, 1.0)
     s = s / peak  # the model is x s + y c with x = kb exp(offset) peak and y = kd
     sc, st = jnp.stack([w * c, w * t]) @ s  # a matrix product under vmap
-    ss, cc, ct, tt = jnp.sum(w * s * s), jnp.sum(w * c * c), jnp.sum(w * c * t), jnp.sum(w * t * t)
+    ss, cc = jnp.sum(w * s * s), jnp.sum(w * c * c)
+    ct, tt = jnp.sum(w * c * t), jnp.sum(w * t * t)
     to_x = jnp.exp(offset) * peak
     (kb_low, kd_low), (kb_high, kd_high) = bounds.lower[::4], bounds.upper[::4]
     lo, hi = jnp.stack([kb_low * to_x, kd_low]), jnp.stack([kb_high * to_x, kd_high])
