@@ -122,8 +122,8 @@ def plot_corner(results, path, title: str = "", truths=None, names=None):
     """Corner plot of the posterior of (kb, kr, a, b, kd), one or more results overlaid.
 
     Each parameter is drawn on its search scale (log10 kb, asinh b, ...), the coordinates
-    the prior is uniform in, where the posterior is closest to Gaussian; contours enclose 39 % and 86 % (one and two
-    standard deviations of a 2-D Gaussian).
+    the prior is uniform in, where the posterior is closest to Gaussian; contours enclose
+    39 % and 86 % (one and two standard deviations of a 2-D Gaussian).
 
     Args:
         results: an `~brdfjax.posterior.UncertaintyResult` or a list of them (e.g. Laplace

@@ -81,7 +81,8 @@ def polish(starts, prob: Problem, bounds: Bounds, *, max_steps: int = 1000,
 
     Every start first takes up to ``screen_steps`` steps; only the ``keep`` best then
     continue for up to ``max_steps`` more, so that a start crawling along a flat valley
-    towards a bound (hundreds of steps) is run long only where it may win. With ``keep`` at least the number of starts there is no screening.
+    towards a bound (hundreds of steps) is run long only where it may win. With ``keep``
+    at least the number of starts there is no screening.
 
     Args:
         starts: unconstrained starting coordinates, (S, 5).
