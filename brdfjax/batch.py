@@ -21,8 +21,8 @@ distinct good members), but as one compiled call per chunk of samples:
    only as many devices as it has samples).
 4. Every sample is keyed by ``jax.random.key(seed)`` as `brdfjax.fitting.fit` keys it, so a
    batched fit follows the same search as the single fit of the same sample and ends at the
-   same E (to 1e-9 relative, tested; rounding in the longer padded sums is the only
-   difference).
+   same E (to 1e-9 relative, tested): both pad points to the same bucket, so they run the
+   same arithmetic, except for a sample padded further to a larger sample of its chunk.
 5. Each step runs its samples ``search_batch`` (genetic search) or ``polish_batch``
    (Levenberg-Marquardt) at a time side by side under ``vmap``, such groups one after
    another under ``lax.map`` (`across_samples`); ``None`` vmaps the whole chunk. A vmapped
