@@ -107,8 +107,8 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
 
     Returns:
         An `EvolveResult` whose population is in island blocks of
-        ``population_size // islands`` rows, each block sorted best first, returned in the
-        problem's dtype.
+        ``population_size // islands`` rows, each block sorted best first and the blocks
+        ordered by their best (row 0 is the best member), returned in the problem's dtype.
     """
     if population_size % islands:
         raise ValueError(f"population_size {population_size} is not a multiple of "
@@ -172,6 +172,8 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
     state = (jnp.asarray(0), loop_key, z, errors, jnp.full(max_generations, jnp.nan, dtype),
              jnp.zeros(islands, dtype=int), errors[:, 0])
     generations, _, z, errors, history, _, _ = jax.lax.while_loop(condition, step, state)
+    order = jnp.argsort(errors[:, 0])  # islands best first: member 0 is the best of all
+    z, errors = z[order], errors[order]
     return EvolveResult(population=z.reshape(-1, 5).astype(out),
                         errors=errors.reshape(-1).astype(out), history=history.astype(out),
                         generations=generations)

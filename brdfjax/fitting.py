@@ -1,8 +1,8 @@
 """Fitting a measurement set: genetic search, Levenberg-Marquardt polish, and the result.
 
 `fit` is the one entry point. The default ``hybrid`` method runs `brdfjax.evolve.evolve`
-to find the basin, then `brdfjax.polish.polish` from ``starts`` distinct good members at
-once, and keeps the best. ``ga`` stops after the genetic search; ``lm`` polishes from given
+to find the basin, then `brdfjax.polish.polish` from ``starts`` distinct good members
+(and the best one made Fresnel-free) at once, and keeps the best. ``ga`` stops after the genetic search; ``lm`` polishes from given
 parameters, or from random points of the box. Incidence angles can be held out for
 validation, as the paper does (fit 10/30/45/60 deg, validate 21/52 deg).
 """
@@ -127,7 +127,8 @@ def fit(data: Measurements, method: str = "hybrid", *, seed: int = 0,
         validate_incidences: incidence angles (deg) held out of the fit and scored after.
         bounds: the search box (`brdfjax.bounds.default_bounds` if None).
         start: for ``lm``, starting parameters (5,) or (S, 5); random starts if None.
-        starts: how many distinct starts LM polishes (and random starts for ``lm``).
+        starts: how many distinct GA members LM polishes (besides the Fresnel-free start
+            of `brdfjax.polish.fresnel_free`), or how many random starts for ``lm``.
         population_size, max_generations: genetic-search sizes.
         max_steps: LM step cap per start.
         config: genetic-search rates (defaults if None).
@@ -197,14 +198,13 @@ def polish_summary(polished: PolishResult) -> tuple[np.ndarray, str, int]:
 
     Returns:
         The parameters (5,) of the start with the lowest E; ``converged``, ``max_steps``
-        or ``failed`` (no start reached a finite E); and the evaluations taken, a
-        residual and a 5-column Jacobian per step.
+        or ``failed`` (no start reached a finite E); and the evaluations taken.
     """
-    errors, steps = np.asarray(polished.errors), np.asarray(polished.steps)
+    errors = np.asarray(polished.errors)
     pick = int(np.argmin(errors))
     status = ("failed" if not np.isfinite(errors[pick]) else
               "converged" if np.asarray(polished.success)[pick] else "max_steps")
-    return np.asarray(polished.params, dtype=float)[pick], status, int(np.sum(steps + 1)) * 6
+    return np.asarray(polished.params, dtype=float)[pick], status, int(polished.evaluations)
 
 
 def _lm_starts(start, count, seed, bounds):
