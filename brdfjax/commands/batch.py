@@ -26,7 +26,8 @@ COLUMNS = ("file", *PARAMETERS, "error", "status", "message")
 UNCERTAINTY_COLUMNS = (*(f"std_{name}" for name in PARAMETERS), "uncertainty_status")
 SEARCH_OPTIONS = {"population_size": "genetic-search population",
                   "max_generations": "genetic-search generations",
-                  "starts": "Levenberg-Marquardt starts per sample",
+                  "starts": "GA members Levenberg-Marquardt starts from, per sample "
+                            "(plus one Fresnel-free start)",
                   "max_steps": "Levenberg-Marquardt step cap per start"}
 
 
