@@ -20,7 +20,9 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import os
+import subprocess
 import sys
 import time
 import warnings
@@ -39,7 +41,7 @@ from brdfjax.formats import load
 from brdfjax.laplace import laplace_approximation
 from brdfjax.model import PAPER_SAMPLES, PARAMETER_NAMES, projected_brdf
 from brdfjax.plot import curve_angles
-from brdfjax.posterior import UncertaintyWarning, sample_posterior
+from brdfjax.posterior import UncertaintyWarning, inline_dispatch, sample_posterior
 from brdfjax.synthetic import paper_sample
 
 TRUTH = np.array(PAPER_SAMPLES["white_paint"], dtype=float)
@@ -123,12 +125,16 @@ def coverage_table(run: dict) -> str:
         f"{100 * np.sqrt(0.95 * 0.05 / n):.1f} %.")
 
 
-def speed() -> str:
-    """Laplace warm and emcee 32 x 5000 warm on the bundled 716-point white-paint set.
+def speed_worker(inline: bool) -> dict:
+    """Laplace warm and emcee 32 x 5000 warm, in this (fresh) process: times in seconds.
 
-    Wall time, and the process's CPU time beside it: on a shared machine the wall time
-    includes waiting for a core.
+    ``inline``: JAX's CPU computations run on the calling thread
+    (`brdfjax.posterior.inline_dispatch`, as ``brdfjax fit`` sets), else JAX's default
+    asynchronous dispatch. Wall time, and the process's CPU time beside it: on a shared
+    machine the wall time includes waiting for a core.
     """
+    if inline:
+        inline_dispatch()  # before the first JAX computation of this process
     data = load(REPO / "data" / "synthetic" / "white_paint.csv")
     result = fit(data, validate_incidences=HELD_OUT)
     laplace = laplace_approximation(data, result)
@@ -138,23 +144,43 @@ def speed() -> str:
         run()
         return time.perf_counter() - wall, time.process_time() - cpu
 
-    laplace_ms = 1e3 * np.array([timed(lambda: laplace_approximation(data, result))
-                                 for _ in range(50)])
+    laplace_times = [timed(lambda: laplace_approximation(data, result)) for _ in range(50)]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UncertaintyWarning)
         sample_posterior(data, result, start=laplace, max_steps=500,
                          stop_when_converged=False, progress=False)
-        sampled = np.array([timed(partial(sample_posterior, data, result, start=laplace,
-                                          max_steps=5000, seed=seed, progress=False,
-                                          stop_when_converged=False)) for seed in range(3)])
-    load_average = os.getloadavg()[0]
+        sampled = [timed(partial(sample_posterior, data, result, start=laplace,
+                                 max_steps=5000, seed=seed, progress=False,
+                                 stop_when_converged=False)) for seed in range(3)]
+    return {"laplace": laplace_times, "emcee": sampled, "load": os.getloadavg()[0]}
+
+
+def speed() -> str:
+    """Laplace and emcee timings, each dispatch mode in a fresh process (alternated, twice)."""
+    runs = {True: [], False: []}
+    for _ in range(2):
+        for inline, done_runs in runs.items():
+            command = [sys.executable, __file__, "--speed-worker",
+                       "inline" if inline else "default"]
+            done = subprocess.run(command, capture_output=True, text=True, check=True)
+            done_runs.append(json.loads(done.stdout.strip().splitlines()[-1]))
+
+    def cells(key, inline, unit=1.0, digits=2):
+        times = unit * np.concatenate([np.array(run[key]) for run in runs[inline]])
+        return (f"{np.median(times[:, 0]):.{digits}f}, {times[:, 0].min():.{digits}f} | "
+                f"{np.median(times[:, 1]):.{digits}f}")
+
+    loads = [run["load"] for both in runs.values() for run in both]
     return ("| what | target | wall (median, min) | CPU (median) |\n|---|---|---|---|\n"
-            f"| Laplace, warm (50 calls) | at most 20 ms | {np.median(laplace_ms[:, 0]):.1f} ms, "
-            f"{laplace_ms[:, 0].min():.1f} ms | {np.median(laplace_ms[:, 1]):.1f} ms |\n"
-            f"| emcee 32 walkers x 5000 steps, 716 points, warm (3 runs) | at most 5 s | "
-            f"{np.median(sampled[:, 0]):.2f} s, {sampled[:, 0].min():.2f} s | "
-            f"{np.median(sampled[:, 1]):.2f} s |\n\n"
-            f"Load average during the runs: {load_average:.1f} on {os.cpu_count()} cores.")
+            f"| Laplace, warm (100 calls), ms | at most 20 ms | {cells('laplace', True, 1e3, 1)} |\n"
+            "| emcee 32 walkers x 5000 steps, 716 points, warm (6 runs), s | at most 5 s | "
+            f"{cells('emcee', True)} |\n"
+            "| the same emcee runs with JAX's default asynchronous dispatch, s | | "
+            f"{cells('emcee', False)} |\n\n"
+            "Each row runs in two fresh processes, alternated with the other mode. The first "
+            "two rows run as `brdfjax fit` does, with JAX's CPU computations inline on the "
+            "calling thread (`brdfjax.posterior.inline_dispatch`). Load average after the "
+            f"runs: {min(loads):.1f}-{max(loads):.1f} on {os.cpu_count()} cores.")
 
 
 def snooker_check(steps: int = 20000) -> str:
@@ -195,7 +221,11 @@ def main() -> None:
     parser.add_argument("--noise-replicates", type=int, default=50)
     parser.add_argument("--only", nargs="+", choices=("calibration", "speed", "snooker"),
                         default=("calibration", "speed", "snooker"))
+    parser.add_argument("--speed-worker", choices=("inline", "default"), help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.speed_worker:
+        print(json.dumps(speed_worker(args.speed_worker == "inline")))
+        return
 
     if "speed" in args.only:
         timing = speed()

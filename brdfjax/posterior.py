@@ -439,6 +439,21 @@ def _starting_walkers(start: UncertaintyResult, post: Posterior, walkers: int,
                        covariance * np.outer(cap, cap), lower, upper, walkers)
 
 
+def inline_dispatch() -> None:
+    """Run JAX's CPU computations on the calling thread instead of handing them to a worker.
+
+    emcee calls the log-posterior twice per step, each call about 0.1 ms of work. With JAX's
+    default asynchronous dispatch every call also waits for a worker thread and back; on
+    this 2-core machine that doubled the time per call inside an emcee run (325 against
+    164 us, exploratory) and made 32 walkers x 5000 steps take 6-7 s instead of about 4 s
+    (``BENCHMARKS.md``, section uncertainty-speed). The setting is process-wide and takes
+    effect only before JAX starts its backend (later it changes nothing); ``brdfjax fit``
+    makes it. Not for `brdfjax.fit_batch` on several devices, which needs to dispatch to
+    every device before it waits for any.
+    """
+    jax.config.update("jax_cpu_enable_async_dispatch", False)
+
+
 def autocorrelation_time(chain) -> np.ndarray:
     """emcee's integrated autocorrelation time of each coordinate of a chain (steps, walkers, D).
 

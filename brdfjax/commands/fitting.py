@@ -103,7 +103,9 @@ def run_fit(args) -> None:
     from brdfjax.bounds import make_bounds
     from brdfjax.cache import enable
     from brdfjax.formats import load
+    from brdfjax.posterior import inline_dispatch
 
+    inline_dispatch()  # one device and many small calls (emcee): no worker-thread hand-off
     enable()
     from brdfjax.fitting import fit
 
