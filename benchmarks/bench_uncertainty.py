@@ -226,6 +226,7 @@ def main() -> None:
     if args.speed_worker:
         print(json.dumps(speed_worker(args.speed_worker == "inline")))
         return
+    inline_dispatch()  # as `brdfjax fit` runs
 
     if "speed" in args.only:
         timing = speed()
