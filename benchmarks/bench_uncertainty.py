@@ -172,14 +172,15 @@ def speed() -> str:
 
     loads = [run["load"] for both in runs.values() for run in both]
     return ("| what | target | wall (median, min) | CPU (median) |\n|---|---|---|---|\n"
-            f"| Laplace, warm (100 calls), ms | at most 20 ms | {cells('laplace', True, 1e3, 1)} |\n"
+            "| Laplace, warm (100 calls), ms | at most 20 ms | "
+            f"{cells('laplace', True, 1e3, 1)} |\n"
             "| emcee 32 walkers x 5000 steps, 716 points, warm (6 runs), s | at most 5 s | "
             f"{cells('emcee', True)} |\n"
             "| the same emcee runs with JAX's default asynchronous dispatch, s | | "
             f"{cells('emcee', False)} |\n\n"
             "Each row runs in two fresh processes, alternated with the other mode. The first "
             "two rows run as `brdfjax fit` does, with JAX's CPU computations inline on the "
-            "calling thread (`brdfjax.posterior.inline_dispatch`). Load average after the "
+            "calling thread (`brdfjax.inline_dispatch`). Load average after the "
             f"runs: {min(loads):.1f}-{max(loads):.1f} on {os.cpu_count()} cores.")
 
 

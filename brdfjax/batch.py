@@ -88,8 +88,9 @@ def fit_batch(samples: Sequence[Measurements], *, seed: int | Sequence[int] = 0,
         samples: the measurement sets, any lengths and geometries.
         seed: one seed for every sample, or one per sample.
         bounds: the search box (`brdfjax.bounds.default_bounds` if None).
-        chunk_size: at most this many samples per compiled call; bounds the memory (about
-            ``chunk_size * points * starts * 5 * 8`` bytes of Jacobians).
+        chunk_size: at most this many samples per compiled call; bounds the memory,
+            which grows with it where samples run side by side (``search_batch`` or
+            ``polish_batch`` None or large).
         search_batch, polish_batch: samples side by side under ``vmap`` in the genetic
             search and in the LM polish (`across_samples`); None for the whole chunk.
         devices: the devices to split each chunk over (default: ``jax.devices()``).

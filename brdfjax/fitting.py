@@ -2,9 +2,10 @@
 
 `fit` is the one entry point. The default ``hybrid`` method runs `brdfjax.evolve.evolve`
 to find the basin, then `brdfjax.polish.polish` from ``starts`` distinct good members
-(and the best one made Fresnel-free) at once, and keeps the best. ``ga`` stops after the genetic search; ``lm`` polishes from given
-parameters, or from random points of the box. Incidence angles can be held out for
-validation, as the paper does (fit 10/30/45/60 deg, validate 21/52 deg).
+(and the best one made Fresnel-free) at once, and keeps the best. ``ga`` stops after the
+genetic search; ``lm`` polishes from given parameters, or from random points of the box.
+Incidence angles can be held out for validation, as the paper does (fit 10/30/45/60 deg,
+validate 21/52 deg).
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ LM has no bounds, so it runs in the unconstrained coordinates ``u`` of `brdfjax.
 (``z = sigmoid(u)`` in the unit cube). Several distinct starts run in one compiled call
 with ``throw=False``, each reporting its own status; the caller keeps the best. A start
 identical to an earlier one is skipped (a converged island offers the same member more
-than once), which on a CPU saves about a third of the work.
+than once), which saves about a third of the screening.
 
 The starts run one after another (``lax.map``), not side by side (``vmap``): a vmapped
 ``while_loop`` runs every lane as long as the slowest, and under ``vmap`` each of
