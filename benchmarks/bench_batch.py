@@ -22,7 +22,6 @@ import argparse
 import json
 import os
 import resource
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -30,6 +29,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from benchmarks.report import worker_json, write_section
 from brdfjax.batch import POLISH_BATCH, SEARCH_BATCH
 
 # (search_batch, polish_batch) pairs timed against each other, and brdfjax's defaults.
@@ -128,8 +128,7 @@ def run_worker(count: int, devices: int, batches: tuple = DEFAULT_BATCHES, repea
     command = [sys.executable, __file__, "--worker", str(count), "--batches", json.dumps(named),
                "--repeats", str(repeats), "--settings", json.dumps(settings or {})]
     command += ["--compare-single"] if compare_single else []
-    done = subprocess.run(command, env=env, capture_output=True, text=True, check=True)
-    report = json.loads(done.stdout.strip().splitlines()[-1])
+    report = worker_json(command, env)
     print(f"  {count} samples, {devices} device(s), batches {batches}: cold "
           f"{report['cold']:.1f} s, warm {report['warm']:.2f} s ({report['cpu']:.2f} s CPU), "
           f"{report['maxrss_mb']:.0f} MB", file=sys.stderr)
@@ -279,8 +278,6 @@ def main() -> None:
     text = "\n".join(lines)
     print(text)
     if not args.quick:
-        from benchmarks.report import write_section
-
         write_section("batch", text)
 
 

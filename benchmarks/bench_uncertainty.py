@@ -22,7 +22,6 @@ import argparse
 import dataclasses
 import json
 import os
-import subprocess
 import sys
 import time
 import warnings
@@ -34,7 +33,7 @@ sys.path.insert(0, str(REPO))
 
 import numpy as np
 
-from benchmarks.report import write_section
+from benchmarks.report import worker_json, write_section
 from brdfjax.bands import curve_bands
 from brdfjax.fitting import fit
 from brdfjax.formats import load
@@ -162,8 +161,7 @@ def speed() -> str:
         for inline, done_runs in runs.items():
             command = [sys.executable, __file__, "--speed-worker",
                        "inline" if inline else "default"]
-            done = subprocess.run(command, capture_output=True, text=True, check=True)
-            done_runs.append(json.loads(done.stdout.strip().splitlines()[-1]))
+            done_runs.append(worker_json(command))
 
     def cells(key, inline, unit=1.0, digits=2):
         times = unit * np.concatenate([np.array(run[key]) for run in runs[inline]])

@@ -8,9 +8,11 @@ records the machine, the command and the date.
 from __future__ import annotations
 
 import datetime
+import json
 import os
 import platform
 import re
+import subprocess
 import sys
 from pathlib import Path
 
@@ -53,3 +55,14 @@ def write_section(name: str, body: str) -> None:
     text = pattern.sub(lambda _: section, text) if pattern.search(text) else (
         text.rstrip() + "\n\n" + section + "\n")
     BENCHMARKS.write_text(text)
+
+
+def worker_json(command: list, env: dict | None = None) -> dict:
+    """Run a benchmark worker in a fresh process; its last line of output, read as JSON.
+
+    A failing worker raises with its stderr, so that the reason is not lost.
+    """
+    done = subprocess.run(command, env=env, capture_output=True, text=True, check=False)
+    if done.returncode:
+        raise RuntimeError(f"worker {command[1:]} failed:\n{done.stderr}")
+    return json.loads(done.stdout.strip().splitlines()[-1])

@@ -4,7 +4,9 @@ LM has no bounds, so it runs in the unconstrained coordinates ``u`` of `brdfjax.
 (``z = sigmoid(u)`` in the unit cube). Several distinct starts run in one compiled call
 with ``throw=False``, each reporting its own status; the caller keeps the best. A start
 identical to an earlier one is skipped (a converged island offers the same member more
-than once), which saves about a third of the screening.
+than once), which saves about a third of the screening where the starts run one after
+another (under ``vmap``, as with `brdfjax.fit_batch`'s ``polish_batch`` above 1, the
+skip becomes a select and every start runs; the results are the same).
 
 The starts run one after another (``lax.map``), not side by side (``vmap``): a vmapped
 ``while_loop`` runs every lane as long as the slowest, and under ``vmap`` each of
@@ -28,8 +30,8 @@ from brdfjax.bounds import Bounds, from_free, from_unit, to_free, to_unit
 from brdfjax.cache import stage
 from brdfjax.objective import Problem, error, residuals
 
-# Where the Fresnel-free start puts a: this far up a's search scale (see `fresnel_free`).
-FRESNEL_FREE_A = 0.15
+# Where the Fresnel-free start puts a (see `fresnel_free`).
+FRESNEL_FREE_A = 0.04
 
 # Relative and absolute step tolerances: float64 meets 1e-10 (noise-free data reach
 # E ~ 1e-20); float32 cannot meet tighter than about 1e-6 (FIELD-NOTES.md).
@@ -62,10 +64,10 @@ def _free_residuals(u, args):
     return residuals(from_free(u, bounds), prob)
 
 
-def _levenberg_marquardt(starts, prob, bounds, max_steps):
+def _levenberg_marquardt(starts, skipped, prob, bounds, max_steps):
     """LM from each row of ``starts`` (one after another), each with its own status.
 
-    A row equal to an earlier row is skipped: it keeps its start, E = inf and 0 steps.
+    Rows where ``skipped`` is True are not run: they keep their start, E = inf and 0 steps.
     """
     import lineax as lx  # imported only when traced: a cached stage runs without them
     import optimistix as optx
@@ -86,12 +88,16 @@ def _levenberg_marquardt(starts, prob, bounds, max_steps):
         return (u0, from_free(u0, bounds), jnp.asarray(jnp.inf, u0.dtype), jnp.asarray(False),
                 jnp.asarray(0, jnp.result_type(int)))
 
-    same = jnp.all(starts[:, None] == starts[None], axis=-1)
-    repeated = jnp.any(jnp.tril(same, -1), axis=1)
     u, params, errors, success, steps = jax.lax.map(
-        lambda args: jax.lax.cond(args[1], skip, run, args[0]), (starts, repeated))
-    evaluations = 6 * jnp.sum(jnp.where(repeated, 0, steps + 1))
+        lambda args: jax.lax.cond(args[1], skip, run, args[0]), (starts, skipped))
+    evaluations = 6 * jnp.sum(jnp.where(skipped, 0, steps + 1))
     return PolishResult(u, params, errors, success, steps, evaluations)
+
+
+def repeats(starts) -> jax.Array:
+    """True for each row of ``starts`` (S, 5) equal to an earlier row."""
+    same = jnp.all(starts[:, None] == starts[None], axis=-1)
+    return jnp.any(jnp.tril(same, -1), axis=1)
 
 
 @stage(static_argnames=("max_steps", "screen_steps", "keep"))
@@ -113,11 +119,12 @@ def polish(starts, prob: Problem, bounds: Bounds, *, max_steps: int = 1000,
     Returns:
         A `PolishResult` for the surviving starts (steps counted over both rounds).
     """
+    skipped = repeats(starts)
     if keep >= starts.shape[0]:
-        return _levenberg_marquardt(starts, prob, bounds, max_steps)
-    screened = _levenberg_marquardt(starts, prob, bounds, screen_steps)
-    best = jnp.argsort(screened.errors)[:keep]
-    final = _levenberg_marquardt(screened.free[best], prob, bounds, max_steps)
+        return _levenberg_marquardt(starts, skipped, prob, bounds, max_steps)
+    screened = _levenberg_marquardt(starts, skipped, prob, bounds, screen_steps)
+    best = jnp.argsort(screened.errors)[:keep]  # skipped repeats (E = inf) come last
+    final = _levenberg_marquardt(screened.free[best], skipped[best], prob, bounds, max_steps)
     return final._replace(steps=final.steps + screened.steps[best],
                           evaluations=final.evaluations + screened.evaluations)
 
@@ -143,18 +150,22 @@ def polish_population(population, prob: Problem, bounds: Bounds, *, starts: int 
 
 
 def fresnel_free(z, bounds: Bounds) -> jax.Array:
-    """Unit-cube members (last axis 5) moved to b = 0 and a low, `FRESNEL_FREE_A` up its scale.
+    """Unit-cube members (last axis 5) moved to b = 0 and a = `FRESNEL_FREE_A`.
 
     With b = 0 the Fresnel stand-in ``exp(b (1 - cos g)^a)`` is 1: the plain
     Torrance-Sparrow lobe. Where the data's Fresnel effect is within the noise (the paper's
     cement), the best fits lie near there, at small a and |b| < 1, where only ``a b``
     matters: a thin valley that a population of 128 found on only 12 of 20 noisy cement
     sets, against 20 of 20 (and 30 of 30 on 30 more seeds) with this one start added
-    (exploratory, against a long multi-start search). a starts low but not at its bound,
-    so that LM can move it either way; 0.1 and 0.2 did as well, 0.05 and 0.3 worse.
+    (exploratory, against a long multi-start search). a starts small but not at its
+    default bound, so that LM can move it either way: 0.025 and 0.063 did as well, 0.016
+    and 0.16 worse. Where b's bounds exclude 0 the members come back unchanged (as repeats,
+    `polish` skips them); a outside its bounds is clipped to them.
     """
-    zero_b = jnp.clip(to_unit(jnp.ones(5).at[3].set(0.0), bounds)[3], 0.0, 1.0)
-    return z.at[..., 2].set(FRESNEL_FREE_A).at[..., 3].set(zero_b)
+    wanted = to_unit(jnp.ones(5).at[2].set(FRESNEL_FREE_A).at[3].set(0.0), bounds)
+    wanted = jnp.clip(wanted, 0.0, 1.0)
+    moved = z.at[..., 2].set(wanted[2]).at[..., 3].set(wanted[3])
+    return jnp.where((bounds.lower[3] <= 0) & (bounds.upper[3] >= 0), moved, z)
 
 
 def distinct_members(z, count: int, separation: float = 0.02) -> jax.Array:

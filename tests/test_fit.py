@@ -101,21 +101,33 @@ def test_second_fit_of_same_shaped_data_does_not_recompile(clean_white_paint):
 
 def test_repeated_starts_are_skipped_and_change_nothing(clean_white_paint):
     prob, bounds = problem(clean_white_paint), default_bounds()
-    u = to_free(np.array([PAPER_SAMPLES["white_paint"], PAPER_SAMPLES["cement"]]), bounds)
-    alone = polish(u, prob, bounds, max_steps=50, keep=2)
-    repeated = polish(u[[0, 1, 0, 1]], prob, bounds, max_steps=50, keep=4)
-    np.testing.assert_array_equal(repeated.errors[:2], alone.errors)
-    np.testing.assert_array_equal(repeated.steps[:2], alone.steps)
-    assert np.all(np.isinf(repeated.errors[2:])) and np.all(repeated.steps[2:] == 0)
-    assert repeated.evaluations == alone.evaluations == 6 * np.sum(alone.steps + 1)
+    u = to_free(np.array([PAPER_SAMPLES[name] for name in ("white_paint", "cement",
+                                                              "khaki_paint")]), bounds)
+    steps = {"max_steps": 50, "screen_steps": 5, "keep": 2}
+    alone = polish(u, prob, bounds, **steps)
+    repeated = polish(u[[0, 1, 0, 2, 1]], prob, bounds, **steps)
+    np.testing.assert_array_equal(repeated.errors, alone.errors)
+    np.testing.assert_array_equal(repeated.steps, alone.steps)
+    assert repeated.evaluations == alone.evaluations
+    # Fewer distinct starts than survive screening: the repeat that survives is not rerun.
+    few = polish(u[[0, 0, 0, 1]], prob, bounds, **{**steps, "keep": 3})
+    assert np.isinf(few.errors[2]) and few.steps[2] == 0 and np.all(few.steps[:2] > 0)
+    # each real start: a residual and a 5-column Jacobian at its start and per step, twice
+    assert few.evaluations == 6 * np.sum(few.steps[:2] + 2)
 
 
-def test_fresnel_free_start_switches_the_fresnel_term_off(clean_white_paint):
-    bounds, geometry = default_bounds(), problem(clean_white_paint).scene
+def test_fresnel_free_start(clean_white_paint):
+    prob, bounds = problem(clean_white_paint), default_bounds()
     free = from_unit(fresnel_free(jax.numpy.full(5, 0.7), bounds), bounds)
-    assert free[3] == 0.0 and free[2] == pytest.approx(10 ** (-2 + 4 * FRESNEL_FREE_A))
+    assert free[3] == 0.0 and free[2] == pytest.approx(FRESNEL_FREE_A, rel=1e-12)
     other_a = free.at[2].set(30.0)  # with b = 0, R0 = 1 whatever a is
-    np.testing.assert_array_equal(evaluate(free, geometry), evaluate(other_a, geometry))
+    np.testing.assert_array_equal(evaluate(free, prob.scene), evaluate(other_a, prob.scene))
+    # polish_population adds it as a 17th start; where b cannot be 0 it is a skipped repeat
+    population = evolve(0, prob, bounds).population
+    for b_range, runs in (((-150.0, 80.0), True), ((-150.0, -10.0), False)):
+        polished = polish_population(population, prob, make_bounds({"b": b_range}),
+                                     max_steps=2, keep=17)
+        assert polished.steps.shape == (17,) and (polished.steps[16] > 0) == runs
 
 
 def test_noisy_cement_reaches_the_best_fit_of_a_long_search():
