@@ -17,9 +17,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from brdfjax.cache import stage
-from brdfjax.geometry import PAPER_CONSTANTS, ShadowingConstants, scene
 from brdfjax.hemispherical import reflectance
 from brdfjax.model import evaluate_projected
+from brdfjax.models import Model, get
 from brdfjax.plot import curve_angles
 from brdfjax.posterior import INTERVALS
 
@@ -90,24 +90,25 @@ def quantile_bands(values) -> tuple[np.ndarray, ...]:
 
 
 @stage
-def _curves(samples, geometry) -> jax.Array:
-    """``f_r cos(theta_r)`` of every draw (S, 5) on a scene: (S, points)."""
-    return jax.vmap(evaluate_projected, in_axes=(0, None))(samples, geometry)
+def _curves(samples, geometry, model) -> jax.Array:
+    """``f_r cos(theta_r)`` of every draw (S, P) on the model's geometry: (S, points)."""
+    return jax.vmap(evaluate_projected, in_axes=(0, None, None))(samples, geometry, model)
 
 
 def curve_bands(samples, incidences_deg, *, count: int = 361, draws: int = CURVE_DRAWS,
-                seed: int = 0, constants: ShadowingConstants = PAPER_CONSTANTS) -> dict:
+                seed: int = 0, model: str | Model | None = None, constants=None) -> dict:
     """68.27 % and 95 % bands of the in-plane curves at any incidences, held-out ones too.
 
     Each scan runs from -89.9 to 89.9 deg signed reflection angle (< 0: source side), as the
     curves of `brdfjax.plot.plot_fit`.
 
     Args:
-        samples: parameter draws (S, 5), e.g. `UncertaintyResult.samples`.
+        samples: parameter draws (S, P), e.g. `UncertaintyResult.samples`.
         incidences_deg: incidence angles in degrees.
         count: points per scan.
         draws, seed: how many of the samples to use, picked at random (`subsample`).
-        constants: the shadowing constants of Eq. (3).
+        model: the model of the samples (the five-parameter model if None).
+        constants: the shadowing constants of Eq. (3), for models with a G term.
 
     Returns:
         ``{incidence: CurveBand}``, keyed by the incidences as floats (the form
@@ -116,34 +117,37 @@ def curve_bands(samples, incidences_deg, *, count: int = 361, draws: int = CURVE
     incidences = [float(x) for x in np.atleast_1d(incidences_deg)]
     scans = [curve_angles(deg, count) for deg in incidences]
     angles = [np.concatenate([scan[0][k] for scan in scans]) for k in range(3)]
-    geometry = scene(*angles, constants, in_plane=True)
-    values = np.asarray(_curves(jnp.asarray(subsample(samples, draws, seed)), geometry))
+    model = get(model, constants)
+    geometry = model.geometry(*angles, in_plane=True)
+    values = np.asarray(_curves(jnp.asarray(subsample(samples, draws, seed)), geometry, model))
     bands = quantile_bands(values.reshape(values.shape[0], len(incidences), count))
     return {deg: CurveBand(scans[k][1], *(band[k] for band in bands))
             for k, deg in enumerate(incidences)}
 
 
-@stage(static_argnames=("constants",))
-def _reflectances(samples, theta_i, constants) -> jax.Array:
-    """rho of Eq. (9) for every draw (S, 5) at every incidence (M,): (S, M)."""
-    return jax.vmap(lambda params: reflectance(params, theta_i, constants))(samples)
+@stage
+def _reflectances(samples, theta_i, model) -> jax.Array:
+    """rho of Eq. (9) for every draw (S, P) at every incidence (M,): (S, M)."""
+    return jax.vmap(lambda params: reflectance(params, theta_i, model=model))(samples)
 
 
 def reflectance_bands(samples, theta_i_deg, *, draws: int = REFLECTANCE_DRAWS, seed: int = 0,
-                      constants: ShadowingConstants = PAPER_CONSTANTS) -> ReflectanceBands:
+                      model: str | Model | None = None, constants=None) -> ReflectanceBands:
     """Posterior median, spread and intervals of the reflectance rho(theta_i) of Eq. (9).
 
     Args:
-        samples: parameter draws (S, 5).
+        samples: parameter draws (S, P).
         theta_i_deg: incidence angles in degrees.
         draws, seed: how many of the samples to integrate, picked at random (`subsample`).
-        constants: the shadowing constants of Eq. (3).
+        model: the model of the samples (the five-parameter model if None).
+        constants: the shadowing constants of Eq. (3), for models with a G term.
 
     Returns:
         `ReflectanceBands`.
     """
     samples = subsample(samples, draws, seed)
     theta = np.atleast_1d(np.asarray(theta_i_deg, dtype=float))
-    values = np.asarray(_reflectances(jnp.asarray(samples), jnp.radians(theta), constants))
+    values = np.asarray(_reflectances(jnp.asarray(samples), jnp.radians(theta),
+                                      get(model, constants)))
     return ReflectanceBands(theta, np.median(values, axis=0), np.std(values, axis=0, ddof=1),
                             *quantile_bands(values))

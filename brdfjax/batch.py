@@ -7,7 +7,7 @@ distinct good members), but as one compiled call per chunk of samples:
 1. Each sample is checked (`brdfjax.measurements.validate`); one that fails becomes a
    ``failed`` result carrying the reason and never reaches the compiled fit, so it cannot
    spoil the others. Inside the fit every sample is its own lane with its own status.
-2. Samples with identical angle arrays share one precomputed `~brdfjax.geometry.Scene`.
+2. Samples with identical angle arrays share one precomputed geometry of the model.
    Samples are ordered by geometry and cut into chunks of at most ``chunk_size``; a chunk
    whose samples all share one geometry passes that scene once (``vmap`` with
    ``in_axes=None``), any other chunk passes one scene per sample.
@@ -54,10 +54,16 @@ import numpy as np
 
 from brdfjax.bounds import Bounds, default_bounds
 from brdfjax.evolve import EvolveConfig, EvolveResult, evolve
-from brdfjax.fitting import FitResult, fit, fit_result, polish_summary, search_summary
-from brdfjax.geometry import Scene, ShadowingConstants
+from brdfjax.fitting import (
+    FitResult,
+    check_bounds,
+    fit,
+    fit_result,
+    polish_summary,
+    search_summary,
+)
 from brdfjax.measurements import DataError, Measurements, validate
-from brdfjax.model import Params
+from brdfjax.models import Model, get
 from brdfjax.objective import Problem, bucket, pad, padded_scene, prepare, problem
 from brdfjax.polish import PolishResult, polish_population
 
@@ -72,13 +78,14 @@ SEARCH_BATCH = 1
 POLISH_BATCH = 1
 
 
-def fit_batch(samples: Sequence[Measurements], *, seed: int | Sequence[int] = 0,
-              bounds: Bounds | None = None, chunk_size: int = 256,
+def fit_batch(samples: Sequence[Measurements], *, model: str | Model | None = None,
+              seed: int | Sequence[int] = 0, bounds: Bounds | None = None,
+              chunk_size: int = 256,
               search_batch: int | None = SEARCH_BATCH, polish_batch: int | None = POLISH_BATCH,
               devices=None, **options) -> list[FitResult]:
-    """Fit the five-parameter model to every sample of a batch, one compiled call per chunk.
+    """Fit a model to every sample of a batch, one compiled call per chunk.
 
-    Each sample gets the fit that ``brdfjax.fit(sample, seed=seed)`` gives it (hybrid
+    Each sample gets the fit that ``brdfjax.fit(sample, model=model, seed=seed)`` gives it (hybrid
     method, no held-out incidences) and its own status: ``converged``, ``max_steps`` or
     ``failed``, with `FitResult.message` saying why where there is more to say. Bad data
     (NaN, no measurements, ...) make that sample ``failed`` with the `DataError` text; the
@@ -86,8 +93,10 @@ def fit_batch(samples: Sequence[Measurements], *, seed: int | Sequence[int] = 0,
 
     Args:
         samples: the measurement sets, any lengths and geometries.
+        model: a name of `brdfjax.models.available` or a `brdfjax.models.Model` (the
+            five-parameter model if None).
         seed: one seed for every sample, or one per sample.
-        bounds: the search box (`brdfjax.bounds.default_bounds` if None).
+        bounds: the search box (the model's `brdfjax.bounds.default_bounds` if None).
         chunk_size: at most this many samples per compiled call; bounds the memory,
             which grows with it where samples run side by side (``search_batch`` or
             ``polish_batch`` None or large).
@@ -107,9 +116,11 @@ def fit_batch(samples: Sequence[Measurements], *, seed: int | Sequence[int] = 0,
         raise TypeError(f"fit_batch got unknown option(s) {sorted(unknown)}; "
                         f"it takes {sorted(FIT_DEFAULTS)}")
     options = {**FIT_DEFAULTS, **options}
-    constants, config = options.pop("constants"), options.pop("config")
+    model = get(model, options.pop("constants"))
+    config = options.pop("config")
     seeds = np.broadcast_to(np.asarray(seed, dtype=np.int64), (len(samples),))
-    bounds = default_bounds() if bounds is None else bounds
+    bounds = default_bounds(model) if bounds is None else bounds
+    check_bounds(bounds, model)
     devices = list(devices or jax.devices())
     settings = {**options, "search_batch": search_batch, "polish_batch": polish_batch}
     results: list[FitResult | None] = [None] * len(samples)
@@ -125,11 +136,11 @@ def fit_batch(samples: Sequence[Measurements], *, seed: int | Sequence[int] = 0,
             try:
                 validate(data, path=data.name)
                 if keys[index] not in scenes:  # padded once, shared by its samples
-                    scenes[keys[index]] = padded_scene(prepare(data, constants),
+                    scenes[keys[index]] = padded_scene(prepare(data, model),
                                                        bucket(len(data)))
-                problems[index] = problem(data, constants, geometry=scenes[keys[index]])
+                problems[index] = problem(data, model, geometry=scenes[keys[index]])
             except (DataError, ValueError) as error:
-                results[index] = _failed(data, str(error), bounds, constants)
+                results[index] = _failed(data, str(error), bounds, model)
         if not problems:
             continue
         chunk = list(problems)
@@ -140,7 +151,7 @@ def fit_batch(samples: Sequence[Measurements], *, seed: int | Sequence[int] = 0,
         for lane, index in enumerate(chunk):
             results[index] = _sample_result(
                 samples[index], _lane(searched, lane), _lane(polished, lane),
-                options["population_size"], share, options["max_steps"], bounds, constants,
+                options["population_size"], share, options["max_steps"], bounds, model,
                 problems[index].scene)
     return results
 
@@ -158,21 +169,20 @@ def _lane(batched, lane: int):
     return jax.tree.map(lambda x: x[lane], batched)
 
 
-def _failed(data: Measurements, message: str, bounds: Bounds,
-            constants: ShadowingConstants) -> FitResult:
+def _failed(data: Measurements, message: str, bounds: Bounds, model: Model) -> FitResult:
     """The result of a sample that could not be fitted: NaN parameters and the reason."""
     nothing = np.zeros(0)
-    return FitResult(params=Params(*[np.nan] * 5), error=np.nan, error_by_incidence={},
+    return FitResult(params=model.Params(*[np.nan] * model.size), error=np.nan,
+                     error_by_incidence={},
                      validation_error=None, validation_by_incidence={}, residuals=nothing,
                      status="failed", at_bounds=[], evaluations=0,
                      lm_steps=nothing.astype(int), lm_success=nothing.astype(bool),
                      timings={}, history=nothing, method="hybrid", train_incidences=[],
-                     validation_incidences=[], bounds=bounds, constants=constants,
-                     message=message)
+                     validation_incidences=[], bounds=bounds, model=model, message=message)
 
 
 def _sample_result(data, searched, polished, population_size, seconds, max_steps, bounds,
-                   constants, geometry) -> FitResult:
+                   model, geometry) -> FitResult:
     """One sample's `FitResult` from its lane of the batched search and polish."""
     history, evaluations = search_summary(searched, population_size)
     best, status, lm_evaluations = polish_summary(polished)
@@ -180,7 +190,7 @@ def _sample_result(data, searched, polished, population_size, seconds, max_steps
                             "before meeting its tolerance",
                "failed": "no start reached a finite E"}.get(status, "")
     empty = data.select(np.zeros(len(data), dtype=bool))
-    return fit_result(data, data, empty, best, bounds, constants, geometry, method="hybrid",
+    return fit_result(data, data, empty, best, bounds, model, geometry, method="hybrid",
                       status=status, evaluations=evaluations + lm_evaluations,
                       lm_steps=polished.steps, lm_success=polished.success,
                       timings={"total": seconds}, history=history, message=message)
@@ -197,10 +207,11 @@ def _run_chunk(problems: list[Problem], seeds, bounds, config, devices, chunk_si
     shared = all(p.scene is problems[0].scene for p in problems)
     targets = np.stack([pad(problems[i].target, points, 0.0) for i in chosen])
     weights = np.stack([pad(problems[i].weight, points, 0.0) for i in chosen])
+    model = problems[0].model
     if shared:
         scene = padded_scene(problems[0].scene, points)
     else:
-        scene = Scene(*(np.stack(fields) for fields in zip(
+        scene = type(problems[0].scene)(*(np.stack(fields) for fields in zip(
             *(padded_scene(problems[i].scene, points) for i in chosen))))
     config = EvolveConfig() if config is None else config
     block = lanes // len(devices)
@@ -211,7 +222,7 @@ def _run_chunk(problems: list[Problem], seeds, bounds, config, devices, chunk_si
         seeds_, target, weight, scene_ = jax.device_put(part, device)
         running.append(_fit_chunk(seeds_, jax.device_put(scene, device) if shared else scene_,
                                   target, weight, *jax.device_put((bounds, config), device),
-                                  **settings))
+                                  model, **settings))
     return jax.tree.map(lambda *blocks: np.concatenate(blocks)[:count], *running)
 
 
@@ -222,17 +233,18 @@ def _block(values, number: int, size: int):
 
 @partial(jax.jit, static_argnames=("population_size", "max_generations", "starts",
                                    "max_steps", "search_batch", "polish_batch"))
-def _fit_chunk(seeds, scene: Scene, target, weight, bounds: Bounds, config: EvolveConfig, *,
-               population_size: int, max_generations: int, starts: int, max_steps: int,
+def _fit_chunk(seeds, scene, target, weight, bounds: Bounds, config: EvolveConfig,
+               model: Model, *, population_size: int, max_generations: int, starts: int, max_steps: int,
                search_batch: int | None,
                polish_batch: int | None) -> tuple[EvolveResult, PolishResult]:
     """The hybrid fit of a padded chunk in one compiled call.
 
     Args:
         seeds: one integer seed per sample, (B,).
-        scene: one scene (P,) shared by every sample, or one per sample (B, P).
-        target, weight: the `Problem` arrays of each sample, (B, P); weight 0 on padding.
+        scene: one geometry (N,) shared by every sample, or one per sample (B, N).
+        target, weight: the `Problem` arrays of each sample, (B, N); weight 0 on padding.
         bounds, config: the search box and the genetic-search rates.
+        model: the `brdfjax.models.Model` fitted (static).
         population_size, max_generations, starts, max_steps: as in `fit`.
         search_batch, polish_batch: samples run side by side in each stage (see
             `across_samples`).
@@ -242,11 +254,11 @@ def _fit_chunk(seeds, scene: Scene, target, weight, bounds: Bounds, config: Evol
     """
 
     def search(scene, seed, target, weight):
-        return evolve(jax.random.key(seed), Problem(scene, target, weight), bounds, config,
+        return evolve(jax.random.key(seed), Problem(scene, target, weight, model), bounds, config,
                       population_size=population_size, max_generations=max_generations)
 
     def refine(scene, population, target, weight):
-        return polish_population(population, Problem(scene, target, weight), bounds,
+        return polish_population(population, Problem(scene, target, weight, model), bounds,
                                  starts=starts, max_steps=max_steps)
 
     searched = across_samples(search, scene, (seeds, target, weight), search_batch)
@@ -255,7 +267,7 @@ def _fit_chunk(seeds, scene: Scene, target, weight, bounds: Bounds, config: Evol
     return searched, polished
 
 
-def across_samples(function, scene: Scene, arrays: tuple, batch: int | None):
+def across_samples(function, scene, arrays: tuple, batch: int | None):
     """``function(scene, *arrays[i])`` for every sample i, ``batch`` samples side by side.
 
     ``batch`` samples run together under ``vmap``, such groups one after another under
@@ -264,14 +276,14 @@ def across_samples(function, scene: Scene, arrays: tuple, batch: int | None):
 
     Args:
         function: ``(scene, *per-sample arrays) -> pytree`` for one sample.
-        scene: a `Scene` shared by all samples (arrays (P,)) or one per sample ((B, P)).
+        scene: a geometry shared by all samples (arrays (N,)) or one per sample ((B, N)).
         arrays: per-sample arrays, leading axis B.
         batch: samples per vmapped group, or None for all.
 
     Returns:
         The stacked outputs, leading axis B.
     """
-    shared = scene.cos_alpha.ndim == 1
+    shared = scene.cos_theta_r.ndim == 1
     if batch is None:
         return jax.vmap(function, in_axes=(None if shared else 0,) + (0,) * len(arrays))(
             scene, *arrays)

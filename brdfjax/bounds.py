@@ -6,16 +6,18 @@ parameter through a per-parameter scale ``T`` (linear, log10 or asinh):
 
     p = T^-1(T(lower) + (T(upper) - T(lower)) z)
 
-Why these defaults: the paper's five samples span kb 0.003-5.7, kr 0.48-16, a 0.45-16,
-b -59 to -18, kd 0.07-2.3. Real black coatings push the fit into a degeneracy where
-``kb exp(b (1 - cos g)^a)`` trades a tiny kb (down to 1e-12) against a positive b (up to
-+35). Searched linearly, such ranges hide the basin from a global search; in log10 it is
-found on every real run tried (``FIELD-NOTES.md``). So kb spans 1e-14..1e3 in log10, kr
-and a 1e-2..1e2, kd 1e-8..1e2. b takes either sign and matters from about 0.1 up
-(it multiplies ``(1 - cos g)^a <= 1`` in an exponent): it spans -150..80 on an asinh
-scale, linear near zero and logarithmic beyond 1. Searched linearly, |b| < 0.3 would be
-0.3 % of the range, and the best fit of cement-like data (a weak Fresnel term) lies
-there; on the asinh scale it is 6 %. Users can pass their own ranges and scales.
+Each model declares its default ranges and scales, each with its reason
+(`brdfjax.models.Model.parameters`). For the five-parameter model: the paper's five
+samples span kb 0.003-5.7, kr 0.48-16, a 0.45-16, b -59 to -18, kd 0.07-2.3. Real black
+coatings push the fit into a degeneracy where ``kb exp(b (1 - cos g)^a)`` trades a tiny kb
+(down to 1e-12) against a positive b (up to +35). Searched linearly, such ranges hide the
+basin from a global search; in log10 it is found on every real run tried. So kb spans
+1e-14..1e3 in log10, kr and a 1e-2..1e2, kd 1e-8..1e2. b takes either sign and matters
+from about 0.1 up (it multiplies ``(1 - cos g)^a <= 1`` in an exponent): it spans
+-150..80 on an asinh scale, linear near zero and logarithmic beyond 1. Searched linearly,
+|b| < 0.3 would be 0.3 % of the range, and the best fit of cement-like data (a weak
+Fresnel term) lies there; on the asinh scale it is 6 %. Users can pass their own ranges
+and scales.
 """
 
 from __future__ import annotations
@@ -25,16 +27,18 @@ from typing import NamedTuple
 import jax
 import numpy as np
 
-from brdfjax.model import PARAMETER_NAMES, array_module
+from brdfjax.models import get
+from brdfjax.models.base import array_module
+from brdfjax.models.five import FiveParameter
 
 LINEAR, LOG10, ASINH = 0, 1, 2
 SCALES = {"linear": LINEAR, "log10": LOG10, "asinh": ASINH}
 
 
 class Bounds(NamedTuple):
-    """Lower and upper bounds of (kb, kr, a, b, kd) and the scale each is searched on.
+    """Lower and upper bounds of a model's parameters and the scale each is searched on.
 
-    Arrays of shape (5,): NumPy from `make_bounds`, traced inside compiled code, so
+    Arrays of shape (P,), one entry per parameter of the model: NumPy from `make_bounds`, traced inside compiled code, so
     sweeping bounds never recompiles. ``scale`` holds `LINEAR`, `LOG10` or `ASINH`.
     """
 
@@ -43,37 +47,41 @@ class Bounds(NamedTuple):
     scale: jax.Array
 
 
-DEFAULT_RANGES = {"kb": (1e-14, 1e3), "kr": (1e-2, 1e2), "a": (1e-2, 1e2),
-                  "b": (-150.0, 80.0), "kd": (1e-8, 1e2)}
-DEFAULT_SCALES = {"kb": "log10", "kr": "log10", "a": "log10", "b": "asinh", "kd": "log10"}
+# The five-parameter model's defaults (every model declares its own).
+DEFAULT_RANGES = {p.name: (p.low, p.high) for p in FiveParameter.parameters}
+DEFAULT_SCALES = {p.name: p.scale for p in FiveParameter.parameters}
 
 
-def default_bounds() -> Bounds:
-    """The default search box (see the module docstring for why)."""
-    return make_bounds({})
+def default_bounds(model=None) -> Bounds:
+    """The default search box of ``model`` (a name or `brdfjax.models.Model`; the
+    five-parameter model if None)."""
+    return make_bounds({}, model=model)
 
 
-def make_bounds(ranges: dict, scales: dict | None = None) -> Bounds:
+def make_bounds(ranges: dict, scales: dict | None = None, model=None) -> Bounds:
     """Bounds from ``{name: (low, high)}`` and ``{name: "linear" | "log10" | "asinh"}``.
 
-    Names missing take `DEFAULT_RANGES` and `DEFAULT_SCALES`.
+    Names missing take the model's defaults (`brdfjax.models.Model.parameters`).
     """
-    scales = {**DEFAULT_SCALES, **(scales or {})}
-    unknown = (set(ranges) | set(scales)) - set(PARAMETER_NAMES)
+    model = get(model)
+    names = model.names
+    scales = {**{p.name: p.scale for p in model.parameters}, **(scales or {})}
+    unknown = (set(ranges) | set(scales)) - set(names)
     if unknown:
-        raise ValueError(f"unknown parameter(s) {sorted(unknown)}; names: {PARAMETER_NAMES}")
+        raise ValueError(f"unknown parameter(s) {', '.join(sorted(unknown))} of the "
+                         f"{model.name} model; its parameters: {', '.join(names)}")
     bad_scale = {k: v for k, v in scales.items() if v not in SCALES}
     if bad_scale:
         raise ValueError(f"unknown scale(s) {bad_scale}; scales: {tuple(SCALES)}")
-    base = {**DEFAULT_RANGES, **ranges}
-    lower = np.array([base[k][0] for k in PARAMETER_NAMES], dtype=float)
-    upper = np.array([base[k][1] for k in PARAMETER_NAMES], dtype=float)
-    scale = np.array([SCALES[scales[k]] for k in PARAMETER_NAMES])
+    base = {**{p.name: (p.low, p.high) for p in model.parameters}, **ranges}
+    lower = np.array([base[k][0] for k in names], dtype=float)
+    upper = np.array([base[k][1] for k in names], dtype=float)
+    scale = np.array([SCALES[scales[k]] for k in names])
     if np.any(lower >= upper):
-        bad = PARAMETER_NAMES[int(np.argmax(lower >= upper))]
+        bad = names[int(np.argmax(lower >= upper))]
         raise ValueError(f"bound of {bad}: lower {base[bad][0]} is not below upper {base[bad][1]}")
     if np.any((scale == LOG10) & (lower <= 0)):
-        bad = PARAMETER_NAMES[int(np.argmax((scale == LOG10) & (lower <= 0)))]
+        bad = names[int(np.argmax((scale == LOG10) & (lower <= 0)))]
         raise ValueError(f"{bad} is searched in log10, so its lower bound must be positive")
     return Bounds(lower, upper, scale)
 
@@ -89,7 +97,7 @@ def scale_label(name: str, scale) -> str:
 
 
 def scaled(params, bounds: Bounds) -> jax.Array:
-    """Each parameter on its search scale: log10, asinh or itself (last axis 5)."""
+    """Each parameter on its search scale: log10, asinh or itself (last axis: the parameters)."""
     xp = array_module(params, *bounds)
     params, log10 = xp.asarray(params), bounds.scale == LOG10
     return xp.where(log10, xp.log10(xp.where(log10, xp.abs(params), 1.0)),
@@ -102,7 +110,7 @@ def _unscaled(t, bounds: Bounds, xp):
 
 
 def from_unit(z, bounds: Bounds) -> jax.Array:
-    """Physical parameters from unit-cube coordinates z (last axis 5)."""
+    """Physical parameters from unit-cube coordinates z (last axis: the parameters)."""
     xp = array_module(z, *bounds)
     lower, upper = scaled(bounds.lower, bounds), scaled(bounds.upper, bounds)
     return _unscaled(lower + (upper - lower) * z, bounds, xp)

@@ -2,12 +2,14 @@
 
 The paper fits its five parameters with a genetic algorithm; this one searches the unit
 cube of `brdfjax.bounds` (log10 for the positive parameters, asinh for b) so that the
-degenerate basins of real data are reachable. Only (kr, a, b) are searched: f_r is linear
-in kb and kd, so every member gets their best values exactly (variable projection), and
-the search space shrinks from five dimensions to three. Each generation:
+degenerate basins of real data are reachable. Only the parameters that enter f_r
+nonlinearly matter to the search ((kr, a, b) of the five-parameter model, alpha of GGX):
+every member gets the best linear ones (kb and kd) exactly (variable projection,
+`brdfjax.objective.solve_linear`), and the search space shrinks from five dimensions to
+three (to one for GGX). Each generation:
 
-1. the population is scored with one ``vmap`` of Eq. (6), kb and kd solved (NaN counts
-   as +inf);
+1. the population is scored with one ``vmap`` of Eq. (6), the linear parameters solved
+   (NaN counts as +inf);
 2. the ``elite_count`` best members pass unchanged (elitism);
 3. parents are drawn by tournament (the best of ``tournament_size`` random members);
 4. children are blends ``p1 + beta (p2 - p1)`` with ``beta ~ U(-0.5, 1.5)`` per gene
@@ -29,7 +31,7 @@ import jax.numpy as jnp
 
 from brdfjax.bounds import Bounds, from_unit, to_unit
 from brdfjax.cache import stage
-from brdfjax.objective import Problem, linear_coefficients
+from brdfjax.objective import Problem, solve_linear
 
 BLEND_EXTENT = 0.5  # BLX-alpha with alpha = 0.5: children may land beyond either parent
 
@@ -47,7 +49,7 @@ class EvolveResult(NamedTuple):
     """The final population and how the run went.
 
     Attributes:
-        population: unit-cube coordinates, (population_size, 5) (see `evolve` for order).
+        population: unit-cube coordinates, (population_size, P) (see `evolve` for order).
         errors: E of each member, (population_size,).
         history: best E after each generation, (max_generations,), NaN after the stop.
         generations: generations run.
@@ -60,21 +62,19 @@ class EvolveResult(NamedTuple):
 
 
 def score_population(z, prob: Problem, bounds: Bounds) -> tuple[jax.Array, jax.Array]:
-    """Score a unit-cube population (N, 5), solving each member's kb and kd exactly.
+    """Score a unit-cube population (N, P), solving each member's linear parameters exactly.
 
-    Only (kr, a, b) are searched: f_r is linear in kb and kd, and
-    `brdfjax.objective.linear_coefficients` gives their best values within the bounds.
-    Those replace the members' kb and kd genes, so the returned population is
-    consistent with its errors.
+    `brdfjax.objective.solve_linear` gives the best linear parameters within the bounds
+    (kb and kd of the five-parameter model). They replace the members' genes, so the
+    returned population is consistent with its errors.
 
     Returns:
         The updated population and the E of each member (NaN becomes +inf).
     """
 
     def one(member):
-        kb, kr, a, b, kd = from_unit(member, bounds)
-        kb, kd, value = linear_coefficients((kr, a, b), prob, bounds)
-        solved = to_unit(jnp.stack([kb, kr, a, b, kd]), bounds)
+        params, value = solve_linear(from_unit(member, bounds), prob, bounds)
+        solved = to_unit(params, bounds)
         return jnp.where(jnp.isfinite(solved), solved, member), value
 
     z, values = jax.vmap(one)(z)
@@ -124,10 +124,11 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
         (prob, bounds))
     config = jax.tree.map(lambda x: jnp.asarray(x, dtype), config)
     size = population_size // islands
+    dimensions = prob.model.size
 
     def score(z):
         """Score every member of every island: one flat vmap, the fastest layout on CPU."""
-        scored, errors = score_population(z.reshape(-1, 5), prob, bounds)
+        scored, errors = score_population(z.reshape(-1, dimensions), prob, bounds)
         return scored.reshape(z.shape), errors.reshape(z.shape[:-1])
 
     def sort(z, errors):
@@ -167,13 +168,13 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
         return generation + 1, key, z, errors, history, stalled, jnp.minimum(best, errors[:, 0])
 
     init_key, loop_key = jax.random.split(key)
-    z = jax.random.uniform(init_key, (islands, size, 5), dtype=dtype)
+    z = jax.random.uniform(init_key, (islands, size, dimensions), dtype=dtype)
     z, errors = sort(*score(z))
     state = (jnp.asarray(0), loop_key, z, errors, jnp.full(max_generations, jnp.nan, dtype),
              jnp.zeros(islands, dtype=int), errors[:, 0])
     generations, _, z, errors, history, _, _ = jax.lax.while_loop(condition, step, state)
     order = jnp.argsort(errors[:, 0])  # islands best first: member 0 is the best of all
     z, errors = z[order], errors[order]
-    return EvolveResult(population=z.reshape(-1, 5).astype(out),
+    return EvolveResult(population=z.reshape(-1, dimensions).astype(out),
                         errors=errors.reshape(-1).astype(out), history=history.astype(out),
                         generations=generations)

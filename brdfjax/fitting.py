@@ -1,8 +1,9 @@
 """Fitting a measurement set: genetic search, Levenberg-Marquardt polish, and the result.
 
-`fit` is the one entry point. The default ``hybrid`` method runs `brdfjax.evolve.evolve`
-to find the basin, then `brdfjax.polish.polish` from ``starts`` distinct good members
-(and the best one made Fresnel-free) at once, and keeps the best. ``ga`` stops after the
+`fit` is the one entry point, for every model of `brdfjax.models` (the five-parameter
+model by default). The default ``hybrid`` method runs `brdfjax.evolve.evolve` to find the
+basin, then `brdfjax.polish.polish` from ``starts`` distinct good members (and the model's
+own extra starts: the five-parameter model's Fresnel-free one) at once, and keeps the best. ``ga`` stops after the
 genetic search; ``lm`` polishes from given parameters, or from random points of the box.
 Incidence angles can be held out for validation, as the paper does (fit 10/30/45/60 deg,
 validate 21/52 deg).
@@ -17,9 +18,9 @@ import numpy as np
 
 from brdfjax.bounds import Bounds, default_bounds, from_unit, to_free, to_unit
 from brdfjax.evolve import EvolveConfig, EvolveResult, evolve
-from brdfjax.geometry import PAPER_CONSTANTS, ShadowingConstants
 from brdfjax.measurements import DataError, Measurements
-from brdfjax.model import PARAMETER_NAMES, Params
+from brdfjax.model import FIVE
+from brdfjax.models import Model, get
 from brdfjax.objective import prepare, problem, projected, relative_error, targets
 from brdfjax.polish import PolishResult, polish, polish_population
 
@@ -31,7 +32,7 @@ class FitResult:
     """The outcome of `fit`.
 
     Attributes:
-        params: the fitted parameters by name.
+        params: the fitted parameters by name (the model's ``Params`` named tuple).
         error: E of Eq. (6) on the training points, as a fraction.
         error_by_incidence: E on each training incidence alone, keyed by degrees.
         validation_error: E on the held-out incidences together (None if none held out).
@@ -40,15 +41,17 @@ class FitResult:
         status: ``converged``, ``max_steps`` (LM hit its step cap), ``failed`` (no finite
             result), or ``search_only`` (the ``ga`` method does not polish).
         at_bounds: names of parameters within 1e-6 of a bound (in unit-cube terms).
-        evaluations: model evaluations of the whole data set (a Jacobian counts 5).
+        evaluations: model evaluations of the whole data set (a Jacobian counts one per
+            parameter).
         lm_steps: LM steps of each start; lm_success: each start's optimistix status.
         timings: wall seconds per stage (``evolve``, ``polish``, ``total``).
         history: the genetic search's best E after each generation.
         method: the method used; train_incidences, validation_incidences: in degrees.
         message: why the status, where there is more to say (a batch sample's data error).
+        model: the `brdfjax.models.Model` fitted.
     """
 
-    params: Params
+    params: tuple
     error: float
     error_by_incidence: dict
     validation_error: float | None
@@ -65,18 +68,19 @@ class FitResult:
     train_incidences: list
     validation_incidences: list
     bounds: Bounds = field(repr=False)
-    constants: ShadowingConstants = field(repr=False, default=PAPER_CONSTANTS)
+    model: Model = field(default=FIVE)
     message: str = ""
 
     @property
     def vector(self) -> np.ndarray:
-        """The parameters as an array ordered kb, kr, a, b, kd."""
+        """The parameters as an array, in the model's order (kb, kr, a, b, kd by default)."""
         return np.array(self.params, dtype=float)
 
     def to_dict(self) -> dict:
         """A JSON-ready summary (E as a fraction, incidences as string keys)."""
         return {
-            "params": dict(zip(PARAMETER_NAMES, map(float, self.params))),
+            "model": self.model.name,
+            "params": dict(zip(self.model.names, map(float, self.params))),
             "error": self.error,
             "error_by_incidence": {f"{k:g}": v for k, v in self.error_by_incidence.items()},
             "validation_error": self.validation_error,
@@ -114,35 +118,39 @@ def _degrees(values) -> str:
     return ", ".join(f"{float(x):g}" for x in values)
 
 
-def fit(data: Measurements, method: str = "hybrid", *, seed: int = 0,
-        validate_incidences=None, bounds: Bounds | None = None, start=None,
+def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None = None,
+        seed: int = 0, validate_incidences=None, bounds: Bounds | None = None, start=None,
         starts: int = 16, population_size: int = 128, max_generations: int = 40,
         max_steps: int = 1000, config: EvolveConfig | None = None,
-        constants: ShadowingConstants = PAPER_CONSTANTS) -> FitResult:
-    """Fit the five-parameter model to measurements by minimising E of Eq. (6).
+        constants=None) -> FitResult:
+    """Fit a model (the five-parameter model by default) by minimising E of Eq. (6).
 
     Args:
         data: the measurements.
         method: ``hybrid`` (genetic search then LM), ``ga`` or ``lm``.
+        model: a name of `brdfjax.models.available` or a `brdfjax.models.Model`.
         seed: seeds every random choice; the same seed gives the same result.
         validate_incidences: incidence angles (deg) held out of the fit and scored after.
-        bounds: the search box (`brdfjax.bounds.default_bounds` if None).
-        start: for ``lm``, starting parameters (5,) or (S, 5); random starts if None.
-        starts: how many distinct GA members LM polishes (besides the Fresnel-free start
-            of `brdfjax.polish.fresnel_free`), or how many random starts for ``lm``.
+        bounds: the search box (the model's `brdfjax.bounds.default_bounds` if None).
+        start: for ``lm``, starting parameters (P,) or (S, P); random starts if None.
+        starts: how many distinct GA members LM polishes (besides the model's extra
+            starts), or how many random starts for ``lm``.
         population_size, max_generations: genetic-search sizes.
         max_steps: LM step cap per start.
         config: genetic-search rates (defaults if None).
-        constants: the shadowing constants of Eq. (3).
+        constants: the shadowing constants of Eq. (3), for models with a G term (the
+            paper's if None).
 
     Returns:
         A `FitResult`.
     """
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; choose one of {METHODS}")
-    bounds = default_bounds() if bounds is None else bounds
+    model = get(model, constants)
+    bounds = default_bounds(model) if bounds is None else bounds
+    check_bounds(bounds, model)
     train, held = split(data, validate_incidences)
-    prob = problem(train, constants)
+    prob = problem(train, model)
     timings, history, evaluations = {}, np.zeros(0), 0
     begin = time.perf_counter()
 
@@ -163,15 +171,15 @@ def fit(data: Measurements, method: str = "hybrid", *, seed: int = 0,
             polished = polish_population(searched.population, prob, bounds, starts=starts,
                                          max_steps=max_steps)
         else:
-            polished = polish(_lm_starts(start, starts, seed, bounds), prob,
-                              bounds, max_steps=max_steps)
+            polished = polish(_lm_starts(start, starts, seed, bounds), prob, bounds,
+                              max_steps=max_steps)
         polished.errors.block_until_ready()
         timings["polish"] = time.perf_counter() - tic
         best, status, lm_evaluations = polish_summary(polished)
         steps, success = np.asarray(polished.steps), np.asarray(polished.success)
         evaluations += lm_evaluations
     timings["total"] = time.perf_counter() - begin
-    return fit_result(data, train, held, np.asarray(best, dtype=float), bounds, constants,
+    return fit_result(data, train, held, np.asarray(best, dtype=float), bounds, model,
                       geometry=None if len(held) else prob.scene, method=method,
                       status=status, evaluations=evaluations, lm_steps=steps,
                       lm_success=success, timings=timings, history=history)
@@ -198,7 +206,7 @@ def polish_summary(polished: PolishResult) -> tuple[np.ndarray, str, int]:
         polished: the surviving starts of one `brdfjax.polish.polish` (host or device).
 
     Returns:
-        The parameters (5,) of the start with the lowest E; ``converged``, ``max_steps``
+        The parameters (P,) of the start with the lowest E; ``converged``, ``max_steps``
         or ``failed`` (no start reached a finite E); and the evaluations taken.
     """
     errors = np.asarray(polished.errors)
@@ -211,39 +219,47 @@ def polish_summary(polished: PolishResult) -> tuple[np.ndarray, str, int]:
 def _lm_starts(start, count, seed, bounds):
     """Unconstrained LM starts: the given parameters, or ``count`` random points of the box."""
     if start is None:
-        unit = np.random.default_rng(seed).uniform(size=(count, 5))
+        unit = np.random.default_rng(seed).uniform(size=(count, bounds.lower.size))
         return to_free(from_unit(unit, bounds), bounds)
     return to_free(np.atleast_2d(np.asarray(start, dtype=float)), bounds)
 
 
-def fit_result(data, train, held, vector, bounds, constants, geometry=None,
+def check_bounds(bounds: Bounds, model: Model) -> None:
+    """A clear error when ``bounds`` were made for another model (another parameter count)."""
+    if np.shape(bounds.lower) != (model.size,):
+        raise ValueError(f"the bounds have {np.size(bounds.lower)} parameters, the {model.name} "
+                         f"model {model.size} ({', '.join(model.names)}); make them with "
+                         f"brdfjax.make_bounds(..., model={model.name!r})")
+
+
+def fit_result(data, train, held, vector, bounds, model, geometry=None,
                **details) -> FitResult:
     """A `FitResult` for ``vector``: E overall, per incidence and held out, from one model
-    evaluation of ``data`` (split into ``train`` and ``held``; ``geometry`` is the scene of
-    ``data``, padded or not, where already computed); ``details`` fill the rest (status,
-    timings, ...).
+    evaluation of ``data`` (split into ``train`` and ``held``; ``geometry`` is the model's
+    geometry of ``data``, padded or not, where already computed); ``details`` fill the rest
+    (status, timings, ...).
     `brdfjax.batch` builds each sample's result with it too."""
-    geometry = prepare(data, constants) if geometry is None else geometry
-    model = np.asarray(projected(vector, geometry))[:len(data)]  # a fit's scene is padded
+    geometry = prepare(data, model) if geometry is None else geometry
+    fitted = np.asarray(projected(vector, geometry, model))[:len(data)]  # padded geometry
     target, weight = targets(data)
     is_held = data.incidence_mask(held.incidences_deg)
     theta = np.round(np.degrees(data.theta_i), 6)
 
     def error_on(mask):
-        return relative_error(model[mask], target[mask], weight[mask])
+        return relative_error(fitted[mask], target[mask], weight[mask])
 
     unit = np.asarray(to_unit(vector, bounds))
     normalised = weight[~is_held] / np.sum(weight[~is_held] * target[~is_held] ** 2)
     return FitResult(
-        params=Params(*map(float, vector)),
+        params=model.Params(*map(float, vector)),
         error=error_on(~is_held),
         error_by_incidence={float(d): error_on(theta == d) for d in train.incidences_deg},
         validation_error=error_on(is_held) if is_held.any() else None,
         validation_by_incidence={float(d): error_on(theta == d) for d in held.incidences_deg},
-        residuals=np.sqrt(normalised) * (model[~is_held] - target[~is_held]),
-        at_bounds=[n for n, z in zip(PARAMETER_NAMES, unit) if z < 1e-6 or z > 1 - 1e-6],
+        residuals=np.sqrt(normalised) * (fitted[~is_held] - target[~is_held]),
+        at_bounds=[n for n, z in zip(model.names, unit) if z < 1e-6 or z > 1 - 1e-6],
         train_incidences=[float(x) for x in train.incidences_deg],
         validation_incidences=[float(x) for x in held.incidences_deg],
-        bounds=bounds, constants=constants, **details)
+        bounds=bounds, model=model, **details)
 
 

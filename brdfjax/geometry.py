@@ -37,6 +37,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from brdfjax.models.base import safe_divide, safe_sqrt
+
 
 class ShadowingConstants(NamedTuple):
     """The four empirical constants of the shadowing function G, Eq. (3).
@@ -106,18 +108,6 @@ def scene(theta_i, theta_r, phi_r, constants: ShadowingConstants = PAPER_CONSTAN
     return terms(theta_i, theta_r, phi_r, constants)
 
 
-def _safe_divide(numerator, denominator, where, fallback):
-    """numerator / denominator where `where`, else `fallback`, with finite gradients."""
-    safe = jnp.where(where, denominator, 1.0)
-    return jnp.where(where, numerator / safe, fallback)
-
-
-def _safe_sqrt(x):
-    """sqrt(x) with a zero (not infinite) derivative at x = 0."""
-    positive = x > 0
-    return jnp.where(positive, jnp.sqrt(jnp.where(positive, x, 1.0)), 0.0)
-
-
 def _assemble(cos_ti, sin_ti, cos_tr, sin_tr, cos_alpha, sin_alpha, one_minus_cos_gamma,
               azimuth_i2, azimuth_r2, azimuth_ir, damping, constants) -> Scene:
     """Build a `Scene` from the angle terms that both paths compute.
@@ -128,7 +118,7 @@ def _assemble(cos_ti, sin_ti, cos_tr, sin_tr, cos_alpha, sin_alpha, one_minus_co
     """
     sigma_sph, _, u_sph, v_sph = constants
     # w(alpha) of Eq. (3), written with sin and cos so it stays finite at alpha = 90 deg.
-    tilt = _safe_divide(sin_alpha, sin_alpha + v_sph * cos_alpha,
+    tilt = safe_divide(sin_alpha, sin_alpha + v_sph * cos_alpha,
                         sin_alpha + v_sph * cos_alpha > 0, 1.0)
     w = sigma_sph * (1.0 + u_sph * tilt)
     # G / cos tr of Eq. (3)-(4) with cos ti and cos tr multiplied through.
@@ -136,7 +126,7 @@ def _assemble(cos_ti, sin_ti, cos_tr, sin_tr, cos_alpha, sin_alpha, one_minus_co
     denom_r = cos_tr**2 + w * sin_tr**2 * azimuth_r2
     numerator = cos_ti * (cos_ti * cos_tr + w * sin_ti * sin_tr * azimuth_ir * damping)
     denominator = denom_i * denom_r
-    shadowing = _safe_divide(numerator, denominator, denominator > 0, 0.0)
+    shadowing = safe_divide(numerator, denominator, denominator > 0, 0.0)
     positive = one_minus_cos_gamma > 0
     log_x = jnp.log(jnp.where(positive, one_minus_cos_gamma, 1.0))
     return Scene(cos_alpha=cos_alpha, sin2_alpha=sin_alpha**2,
@@ -177,24 +167,24 @@ def _general_terms(theta_i, theta_r, phi_r, constants):
     # s = w_i + w_r and d = w_i - w_r, by components.
     s_x, s_y, s_z = sin_ti + sin_tr * cos_pr, sin_tr * sin_pr, cos_ti + cos_tr
     d_x, d_y, d_z = sin_ti - sin_tr * cos_pr, -s_y, cos_ti - cos_tr
-    h = _safe_sqrt(s_x**2 + s_y**2)
-    s_norm = _safe_sqrt(h**2 + s_z**2)                    # 2 cos g
+    h = safe_sqrt(s_x**2 + s_y**2)
+    s_norm = safe_sqrt(h**2 + s_z**2)                    # 2 cos g
     cos_gamma = s_norm / 2
     sin2_gamma = (d_x**2 + d_y**2 + d_z**2) / 4
     one_minus_cos_gamma = sin2_gamma / (1.0 + cos_gamma)
     nonzero = s_norm > 0                                    # false only at w_r = -w_i
-    cos_alpha = _safe_divide(s_z, s_norm, nonzero, 0.0)
-    sin_alpha = _safe_divide(h, s_norm, nonzero, 1.0)
+    cos_alpha = safe_divide(s_z, s_norm, nonzero, 0.0)
+    sin_alpha = safe_divide(h, s_norm, nonzero, 1.0)
     off_specular = h > 1e-12 * (1.0 + s_norm)
     along_i = s_x                                           # h * cos(azimuth of s - 0)
     along_r = s_x * cos_pr + s_y * sin_pr                   # h * cos(azimuth of s - pr)
-    azimuth_i2 = _safe_divide(along_i**2, h**2, off_specular, 1.0)
-    azimuth_r2 = _safe_divide(along_r**2, h**2, off_specular, 1.0)
-    azimuth_ir = _safe_divide(jnp.abs(along_i * along_r), h**2, off_specular, 1.0)
+    azimuth_i2 = safe_divide(along_i**2, h**2, off_specular, 1.0)
+    azimuth_r2 = safe_divide(along_r**2, h**2, off_specular, 1.0)
+    azimuth_ir = safe_divide(jnp.abs(along_i * along_r), h**2, off_specular, 1.0)
     # 1 / (1 + sigma_r tan g') = h / (h + sigma_r |cos ti - cos g|); specular limit
     # tan g' = tan(ti) / 2 gives 2 cos ti / (2 cos ti + sigma_r sin ti).
     damping_specular = 2 * cos_ti / (2 * cos_ti + sigma_r * sin_ti)
-    damping = _safe_divide(h, h + sigma_r * jnp.abs(cos_ti - cos_gamma), off_specular,
+    damping = safe_divide(h, h + sigma_r * jnp.abs(cos_ti - cos_gamma), off_specular,
                            damping_specular)
     return _assemble(cos_ti, sin_ti, cos_tr, sin_tr, cos_alpha, sin_alpha,
                      one_minus_cos_gamma, azimuth_i2, azimuth_r2, azimuth_ir, damping,

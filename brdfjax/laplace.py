@@ -1,7 +1,8 @@
 """Laplace approximation of the posterior at its mode: error bars in milliseconds.
 
 The posterior of `brdfjax.posterior` (Gaussian likelihood on the projected BRDF, prior
-uniform in the fit's unit-cube coordinates ``z``: log10 of kb, kr, a, kd and asinh b) is
+uniform in the fit's unit-cube coordinates ``z``: for the default model log10 of kb, kr, a,
+kd and asinh b) is
 approximated by a Gaussian at its mode ``x*`` whose inverse covariance is the expected
 Fisher information of the Gaussian likelihood,
 
@@ -40,9 +41,9 @@ import numpy as np
 
 from brdfjax.bounds import Bounds, from_unit, to_free, to_unit
 from brdfjax.cache import stage
-from brdfjax.geometry import PAPER_CONSTANTS, ShadowingConstants
 from brdfjax.measurements import Measurements
-from brdfjax.model import PARAMETER_NAMES, evaluate_projected
+from brdfjax.model import evaluate_projected
+from brdfjax.models import Model
 from brdfjax.objective import Problem
 from brdfjax.polish import polish
 from brdfjax.posterior import (
@@ -78,8 +79,7 @@ NOISE_ROUNDS = 2
 
 def laplace_approximation(data: Measurements, fit, *, draws: int = 2000, seed: int = 0,
                           max_steps: int = 1000, condition_limit: float = CONDITION_LIMIT,
-                          bounds: Bounds | None = None,
-                          constants: ShadowingConstants = PAPER_CONSTANTS,
+                          bounds: Bounds | None = None, model: str | Model | None = None,
                           validate_incidences=None) -> UncertaintyResult:
     """Gaussian approximation of the posterior at its mode, from the Jacobian of the model.
 
@@ -90,22 +90,23 @@ def laplace_approximation(data: Measurements, fit, *, draws: int = 2000, seed: i
 
     Args:
         data: all measurements.
-        fit: a `brdfjax.fitting.FitResult`, or parameters (5,) ordered kb, kr, a, b, kd
-            (see `brdfjax.posterior.training_setup`).
+        fit: a `brdfjax.fitting.FitResult`, or parameters (P,) of ``model`` (see
+            `brdfjax.posterior.training_setup`).
         draws: parameter draws kept in ``samples`` (for bands): from the Gaussian truncated
             to the bounds, where the prior is zero.
         seed: seeds the draws.
         max_steps: Levenberg-Marquardt step cap when polishing to the mode (the fit's
             default, so that `brdfjax.fit` with ``lm`` and this share one compiled LM).
         condition_limit: largest acceptable condition number (see `CONDITION_LIMIT`).
-        bounds, constants, validate_incidences: as for `brdfjax.fitting.fit` when ``fit`` is
+        bounds, model, validate_incidences: as for `brdfjax.fitting.fit` when ``fit`` is
             bare parameters.
 
     Returns:
         An `~brdfjax.posterior.UncertaintyResult` with method ``laplace``.
     """
     tic = time.perf_counter()
-    post, start = training_setup(data, fit, bounds, constants, validate_incidences)
+    post, start = training_setup(data, fit, bounds, model, validate_incidences)
+    size = post.size
     center = find_mode(post, start, max_steps)
     information, slope = (np.asarray(v) for v in _curvature(center, post))
     covariance, condition = _invert(information)
@@ -115,8 +116,8 @@ def laplace_approximation(data: Measurements, fit, *, draws: int = 2000, seed: i
             for name, levels in INTERVALS.items()}
     inside = np.all((ends["ci95"] >= np.asarray(post.lower)[:, None])
                     & (ends["ci95"] <= np.asarray(post.upper)[:, None]), axis=1)
-    messages = _flags(center[:5], condition, condition_limit,
-                      {PARAMETER_NAMES[k] for k in np.flatnonzero(~inside[:5])})
+    messages = _flags(center[:size], post.model.names, condition, condition_limit,
+                      {post.model.names[k] for k in np.flatnonzero(~inside[:size])})
     trustworthy = not messages
     warning = chi2_warning(center, post)
     if warning:
@@ -127,32 +128,34 @@ def laplace_approximation(data: Measurements, fit, *, draws: int = 2000, seed: i
     # truncated Gaussian.
     clipped = {name: np.clip(e, np.asarray(post.lower)[:, None], np.asarray(post.upper)[:, None])
                for name, e in ends.items()}
-    unit_draws = draw_inside(np.random.default_rng(seed), center[:5], covariance[:5, :5],
-                             np.zeros(5), np.ones(5), draws)
+    unit_draws = draw_inside(np.random.default_rng(seed), center[:size],
+                             covariance[:size, :size], np.zeros(size), np.ones(size), draws)
     # One transform call for the draws, the median and the four interval ends.
-    points = np.concatenate([unit_draws, center[None, :5]]
-                            + [clipped[n][:5].T for n in INTERVALS])
+    points = np.concatenate([unit_draws, center[None, :size]]
+                            + [clipped[n][:size].T for n in INTERVALS])
     mapped = physical(points, post)
-    samples, median, ci = mapped[:draws], mapped[draws], mapped[draws + 1:].reshape(2, 2, 5)
+    samples, median = mapped[:draws], mapped[draws]
+    ci = mapped[draws + 1:].reshape(2, 2, size)
     noise = noise_summary(post)
-    if post.ndim > 5:
+    if post.ndim > size:
         # A scale at the edge of its prior (typically no absolute noise at all) has no
         # Gaussian interval: it is reported without one.
-        edge = _at_edge(center[5:], np.asarray(post.lower)[5:], np.asarray(post.upper)[5:])
-        noise = noise_summary(post, center[5:], np.where(edge[:, None], np.nan,
-                                                          clipped["ci95"][5:]))
-    physical_covariance = covariance[:5, :5] * np.outer(slope, slope)
+        edge = _at_edge(center[size:], np.asarray(post.lower)[size:],
+                        np.asarray(post.upper)[size:])
+        noise = noise_summary(post, center[size:], np.where(edge[:, None], np.nan,
+                                                             clipped["ci95"][size:]))
+    physical_covariance = covariance[:size, :size] * np.outer(slope, slope)
     return UncertaintyResult(
         method="laplace", status="ok" if trustworthy else "untrustworthy", warnings=messages,
         median=median, std=np.sqrt(np.diag(physical_covariance)), ci68=ci[0].T, ci95=ci[1].T,
-        covariance=physical_covariance, correlation=correlation(covariance[:5, :5]),
+        covariance=physical_covariance, correlation=correlation(covariance[:size, :size]),
         samples=samples, noise=noise, center=center, center_covariance=covariance,
         diagnostics={"condition_number": condition, "points": int(post.target.shape[0])},
-        timings={"total": time.perf_counter() - tic}, bounds=post.bounds)
+        timings={"total": time.perf_counter() - tic}, bounds=post.bounds, model=post.model)
 
 
 def find_mode(post: Posterior, start, max_steps: int = 1000) -> np.ndarray:
-    """The posterior mode in sampling coordinates (ndim,), polished from ``start`` (5,).
+    """The posterior mode in sampling coordinates (ndim,), polished from ``start`` (P,).
 
     Levenberg-Marquardt on ``(m - y) / sqrt(v)``; for the noise model, alternated with the
     maximum-likelihood scales (`estimate_noise`). A polish that does not give a finite
@@ -173,12 +176,12 @@ def find_mode(post: Posterior, start, max_steps: int = 1000) -> np.ndarray:
 
 @stage
 def _weighted_problem(unit, noise, post: Posterior) -> tuple[jax.Array, Problem]:
-    """LM start (1, 5) and the `Problem` whose residuals are ``(m - y) / sqrt(v)``."""
+    """LM start (1, P) and the `Problem` whose residuals are ``(m - y) / sqrt(v)``."""
     params = from_unit(unit, post.bounds)
-    model = evaluate_projected(params, post.scene)
+    model = evaluate_projected(params, post.scene, post.model)
     variance = model_variance(jnp.concatenate([unit, noise]), model, post)
     return (to_free(params, post.bounds)[None],
-            Problem(post.scene, post.target, 1.0 / variance))
+            Problem(post.scene, post.target, 1.0 / variance, post.model))
 
 
 @stage
@@ -197,17 +200,17 @@ def estimate_noise(unit, post: Posterior, iterations: int = 50) -> jax.Array:
     step clipped into the prior's range.
 
     Args:
-        unit: unit-cube parameters (5,).
+        unit: unit-cube parameters (P,).
         post: a `Posterior` of the noise model (no sigma).
         iterations: Fisher-scoring steps (static).
 
     Returns:
         log10 (s_rel, s_abs), shape (2,).
     """
-    model = evaluate_projected(from_unit(unit, post.bounds), post.scene)
+    model = evaluate_projected(from_unit(unit, post.bounds), post.scene, post.model)
     squared = (post.target - model) ** 2
     basis = jnp.stack([model**2, jnp.ones_like(model)], axis=1)
-    low, high = 10.0 ** (2 * post.lower[5:]), 10.0 ** (2 * post.upper[5:])
+    low, high = 10.0 ** (2 * post.lower[post.size:]), 10.0 ** (2 * post.upper[post.size:])
 
     def step(_, variances):
         weight = 1.0 / (basis @ variances) ** 2
@@ -227,7 +230,7 @@ def fisher_information(x, post: Posterior) -> jax.Array:
     """
 
     def moments(x):
-        model = evaluate_projected(from_unit(x[:5], post.bounds), post.scene)
+        model = evaluate_projected(from_unit(x[:post.size], post.bounds), post.scene, post.model)
         return model, jnp.log(model_variance(x, model, post))
 
     _, log_variance = moments(x)
@@ -238,8 +241,9 @@ def fisher_information(x, post: Posterior) -> jax.Array:
 
 @stage
 def _curvature(x, post: Posterior) -> tuple[jax.Array, jax.Array]:
-    """Fisher information at ``x`` and the slopes dp/dz of the bounds' transform (5,)."""
-    slope = jax.jvp(lambda z: from_unit(z, post.bounds), (x[:5],), (jnp.ones(5),))[1]
+    """Fisher information at ``x`` and the slopes dp/dz of the bounds' transform (P,)."""
+    size = post.size
+    slope = jax.jvp(lambda z: from_unit(z, post.bounds), (x[:size],), (jnp.ones(size),))[1]
     return fisher_information(x, post), slope
 
 
@@ -267,11 +271,11 @@ def _at_edge(x, lower, upper) -> np.ndarray:
     return (x < lower + margin) | (x > upper - margin)
 
 
-def _flags(unit, condition: float, condition_limit: float, cut: set) -> list:
+def _flags(unit, names, condition: float, condition_limit: float, cut: set) -> list:
     """Why the Gaussian approximation should not be trusted (an empty list if it can be)."""
     advice = "; use --uncertainty mcmc (brdfjax.sample_posterior) for honest intervals"
     messages = []
-    at_bounds = [name for name, edge in zip(PARAMETER_NAMES, _at_edge(unit, 0, 1)) if edge]
+    at_bounds = [name for name, edge in zip(names, _at_edge(unit, 0, 1)) if edge]
     if at_bounds:
         messages.append(f"{', '.join(at_bounds)} at a bound of the search box: the posterior "
                         "is cut there and is not Gaussian" + advice)

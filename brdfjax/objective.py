@@ -12,6 +12,7 @@ other values never recompiles.
 
 from __future__ import annotations
 
+import itertools
 from typing import NamedTuple
 
 import jax
@@ -20,26 +21,32 @@ import numpy as np
 
 from brdfjax.bounds import Bounds
 from brdfjax.cache import stage
-from brdfjax.geometry import PAPER_CONSTANTS, Scene, ShadowingConstants, scene
 from brdfjax.measurements import Measurements
-from brdfjax.model import evaluate_projected, lobe
+from brdfjax.model import FIVE, evaluate_projected
+from brdfjax.models import Model
 
 
 class Problem(NamedTuple):
     """A measurement set ready for the objective (a pytree of arrays of shape (N,)).
 
     Attributes:
-        scene: the parameter-free geometry terms.
+        scene: the model's parameter-free geometry terms (`brdfjax.models.Model.geometry`).
         target: the measured projected BRDF f_r0 cos(tr).
         weight: g / sum(g target^2); zero for padding points.
+        model: the `brdfjax.models.Model` fitted (static: no leaves).
     """
 
-    scene: Scene
+    scene: NamedTuple
     target: jax.Array
     weight: jax.Array
+    model: Model = FIVE
 
 
-_scene = stage(scene, static_argnames=("constants", "in_plane"))
+def _model_geometry(model, theta_i, theta_r, phi_r, in_plane):
+    return model.geometry(theta_i, theta_r, phi_r, in_plane)
+
+
+_geometry = stage(_model_geometry, static_argnames=("in_plane",))
 
 # Fitted point counts are padded up to a multiple of this with zero-weight copies of the
 # first point (a valid geometry, so every value stays finite; zero weight, so E is
@@ -61,20 +68,28 @@ def pad(values, length: int, fill=None) -> np.ndarray:
     return np.concatenate([values, extra])
 
 
-def padded_scene(geometry: Scene, length: int) -> Scene:
-    """A scene extended to ``length`` points with copies of its first point."""
-    return Scene(*(pad(x, length) for x in geometry))
+def padded_scene(geometry: NamedTuple, length: int) -> NamedTuple:
+    """A geometry extended to ``length`` points with copies of its first point."""
+    return type(geometry)(*(pad(x, length) for x in geometry))
 
 
-def prepare(data: Measurements, constants: ShadowingConstants = PAPER_CONSTANTS,
-            dtype=jnp.float64) -> Scene:
-    """The scene of a measurement set (one compiled call; in-plane data take the fast path)."""
+def prepare(data: Measurements, model: Model = FIVE, dtype=jnp.float64) -> NamedTuple:
+    """The model's geometry of a measurement set (one compiled call; in-plane data take the
+    fast path where the model has one)."""
     angles = (np.asarray(x, dtype=dtype) for x in (data.theta_i, data.theta_r, data.phi_r))
-    return _scene(*angles, constants=constants, in_plane=data.in_plane)
+    return _geometry(model, *angles, in_plane=data.in_plane)
 
 
-projected = stage(evaluate_projected)
-projected.__doc__ = "`brdfjax.model.evaluate_projected` as one compiled stage (host calls)."
+def _projected(params, geometry, model):
+    return evaluate_projected(params, geometry, model)
+
+
+_projected_stage = stage(_projected)
+
+
+def projected(params, geometry, model: Model = FIVE) -> jax.Array:
+    """`brdfjax.model.evaluate_projected` as one compiled stage (host calls)."""
+    return _projected_stage(params, geometry, model)
 
 
 def targets(data: Measurements) -> tuple[np.ndarray, np.ndarray]:
@@ -89,91 +104,147 @@ def relative_error(model_projected, target, weight) -> float:
     return float(np.sum(weight * (model_projected - target) ** 2) / np.sum(weight * target**2))
 
 
-def problem(data: Measurements, constants: ShadowingConstants = PAPER_CONSTANTS,
-            dtype=jnp.float64, geometry: Scene | None = None) -> Problem:
-    """The objective's view of a measurement set: scene, target, normalised weights.
+def problem(data: Measurements, model: Model = FIVE, dtype=jnp.float64,
+            geometry: NamedTuple | None = None) -> Problem:
+    """The objective's view of a measurement set: geometry, target, normalised weights.
 
     The arrays are padded to ``bucket(len(data))`` points of zero weight.
 
     Args:
         data: the measurements.
-        constants: the shadowing constants of Eq. (3).
+        model: the `brdfjax.models.Model` to fit.
         dtype: float64 for fitting; float32 halves the cost of a population evaluation.
-        geometry: the scene of ``data`` if already computed, padded or not.
+        geometry: the model's geometry of ``data`` if already computed, padded or not.
     """
     points = bucket(len(data))
-    geometry = prepare(data, constants, dtype) if geometry is None else geometry
-    if geometry.cos_alpha.shape[-1] != points:
+    geometry = prepare(data, model, dtype) if geometry is None else geometry
+    if geometry.cos_theta_r.shape[-1] != points:
         geometry = padded_scene(geometry, points)
     target, weight = targets(data)
     denominator = np.sum(weight * target**2)
     if not denominator > 0:
         raise ValueError(f"{data.name}: every weighted measurement is zero; nothing to fit")
     return Problem(geometry, jnp.asarray(pad(target, points, 0.0), dtype),
-                   jnp.asarray(pad(weight / denominator, points, 0.0), dtype))
+                   jnp.asarray(pad(weight / denominator, points, 0.0), dtype), model)
 
 
 def residuals(params, prob: Problem) -> jax.Array:
     """Residual vector whose squared norm is E of Eq. (6)."""
-    return jnp.sqrt(prob.weight) * (evaluate_projected(params, prob.scene) - prob.target)
+    return jnp.sqrt(prob.weight) * (evaluate_projected(params, prob.scene, prob.model)
+                                    - prob.target)
 
 
 def error(params, prob: Problem) -> jax.Array:
     """E of Eq. (6) as a fraction (the paper prints it in percent)."""
-    return jnp.sum(prob.weight * (evaluate_projected(params, prob.scene) - prob.target) ** 2)
+    return jnp.sum(prob.weight * (evaluate_projected(params, prob.scene, prob.model)
+                                  - prob.target) ** 2)
 
 
-def linear_coefficients(shape, prob: Problem, bounds: Bounds):
-    """The kb and kd within their bounds that minimise E for fixed (kr, a, b).
+def solve_linear(params, prob: Problem, bounds: Bounds):
+    """The parameters that enter f_r linearly, at their best within the bounds, and E.
 
-    f_r cos(tr) = kb s + kd cos(tr), with s the projected `brdfjax.model.lobe`, so E is a
-    convex quadratic in (kb, kd). Its minimum over the box is the unconstrained minimum
-    when that lies inside, else the best of the four edges, where each is a clipped 1-D
-    minimum: exact, without iterating (variable projection, Golub and Pereyra 1973).
-    E then follows from six weighted sums, without a second pass over the points.
-    The lobe is scaled to a maximum of 1, so that a huge ``exp(b ...)`` balanced by a
-    tiny kb (real black coatings) neither overflows nor loses precision in float32.
+    At fixed nonlinear parameters ``f_r cos(tr) = sum_k c_k s_k`` (the model's
+    `~brdfjax.models.Model.columns` times ``cos tr``), so E of Eq. (6) is a convex quadratic
+    in the coefficients c, minimised over their box exactly, without iterating
+    (`box_least_squares`: variable projection, Golub and Pereyra 1973). E follows from the
+    weighted sums of the column products, without a second pass over the points. Each
+    column is scaled to a maximum of 1, so that a huge ``exp(b ...)`` balanced by a tiny kb
+    (the five-parameter model on real black coatings) neither overflows nor loses
+    precision in float32.
 
     Args:
-        shape: (kr, a, b).
+        params: a parameter vector (P,) whose nonlinear entries are used.
         prob: the measurement set.
-        bounds: the search box (only kb's and kd's bounds are used).
+        bounds: the search box.
 
     Returns:
-        (kb, kd, E).
+        (the parameter vector with its linear entries solved, E).
     """
-    kr, a, b = shape
+    model = prob.model
+    columns, units = model.columns(params, prob.scene)
     c, t, w = prob.scene.cos_theta_r, prob.target, prob.weight
-    offset = jnp.maximum(b, 0.0)
-    s = lobe(kr, a, b, prob.scene, offset) * c
-    peak = jnp.max(jnp.abs(s))
-    peak = jnp.where(peak > 0, peak, 1.0)
-    s = s / peak  # the model is x s + y c with x = kb exp(offset) peak and y = kd
-    sc, st = jnp.stack([w * c, w * t]) @ s  # a matrix product under vmap
-    ss, cc = jnp.sum(w * s * s), jnp.sum(w * c * c)
-    ct, tt = jnp.sum(w * c * t), jnp.sum(w * t * t)
-    to_x = jnp.exp(offset) * peak
-    (kb_low, kd_low), (kb_high, kd_high) = bounds.lower[::4], bounds.upper[::4]
-    lo, hi = jnp.stack([kb_low * to_x, kd_low]), jnp.stack([kb_high * to_x, kd_high])
+    scaled, to_x = [], []
+    for column, unit in zip(columns, units):
+        s = column * c
+        peak = jnp.max(jnp.abs(s))
+        peak = jnp.where(peak > 0, peak, 1.0)
+        scaled.append(s / peak)  # the model is sum x_k s_k with x_k = c_k unit_k peak_k
+        to_x.append(unit * peak)
+    count = len(scaled)
+    gram = [[None] * count for _ in range(count)]
+    for i in range(count):
+        for j in range(i, count):  # entry by entry: a column without parameters stays one
+            gram[i][j] = gram[j][i] = jnp.sum(w * scaled[i] * scaled[j])
+    projections = [jnp.sum(w * s * t) for s in scaled]
+    to_x = jnp.stack([jnp.asarray(x, dtype=c.dtype) for x in to_x])
+    low, high = model.coefficient_bounds(bounds)
+    x, value = box_least_squares(gram, projections, jnp.sum(w * t * t), low * to_x, high * to_x)
+    coefficients = jnp.clip(x / to_x, low, high)
+    return model.assemble(coefficients, params, bounds), value
 
-    def y_given(x):
-        return jnp.clip((ct - sc * x) / cc, lo[1], hi[1])
 
-    def x_given(y):
-        return jnp.clip((st - sc * y) / jnp.where(ss > 0, ss, 1.0), lo[0], hi[0])
+# A free coordinate's pivot in the Cholesky factor below this fraction of its diagonal
+# counts as singular (the columns are collinear within float32's precision).
+PIVOT_TOLERANCE = 1e-6
 
-    det = ss * cc - sc * sc
-    solvable = det > 1e-6 * ss * cc
-    free = jnp.stack([st * cc - sc * ct, ss * ct - sc * st]) / jnp.where(solvable, det, 1.0)
-    candidates = jnp.stack([free, jnp.stack([lo[0], y_given(lo[0])]),
-                            jnp.stack([hi[0], y_given(hi[0])]),
-                            jnp.stack([x_given(lo[1]), lo[1]]),
-                            jnp.stack([x_given(hi[1]), hi[1]])])
-    x, y = candidates[:, 0], candidates[:, 1]
-    e = tt + ss * x * x + 2 * sc * x * y + cc * y * y - 2 * (st * x + ct * y)
-    valid = jnp.arange(5) > 0
-    valid = valid.at[0].set(solvable & jnp.all((free >= lo) & (free <= hi)))
-    e = jnp.where(valid & ~jnp.isnan(e), e, jnp.inf)
-    best = jnp.argmin(e)
-    x, y = candidates[best]
-    return jnp.clip(x / to_x, kb_low, kb_high), y, jnp.maximum(e[best], 0.0)
+
+def box_least_squares(gram, projections, total, low, high):
+    """Exact minimum of ``q(x) = total - 2 p.x + x.G.x`` over the box ``low <= x <= high``.
+
+    q is a convex quadratic, so its minimum over the box is the unconstrained minimum of
+    some face: each coordinate free, at its lower or at its upper bound. All ``3^K`` faces
+    are tried (K, the number of linear coefficients, is at most 3 here: 27 tiny solves,
+    unrolled Cholesky factorisations), and the best face whose free solution lies inside
+    the box wins. The faces with every coordinate at a bound always qualify.
+
+    Args:
+        gram: G as a K x K nested list of scalars; projections: p, K scalars; total: q(0).
+        low, high: the box (K,).
+
+    Returns:
+        (x (K,), q(x) clipped at 0).
+    """
+    count = len(projections)
+    candidates, values = [], []
+    for face in itertools.product(range(3), repeat=count):  # 0 free, 1 lower, 2 upper
+        free = [k for k in range(count) if face[k] == 0]
+        x = [low[k] if face[k] == 1 else high[k] for k in range(count)]
+        rhs = [projections[k] - sum(gram[k][j] * x[j] for j in range(count) if face[j])
+               for k in free]
+        solved, regular = _cholesky_solve([[gram[i][j] for j in free] for i in free], rhs)
+        for k, v in zip(free, solved):
+            x[k] = v
+        inside = regular
+        for k in free:
+            inside = inside & (x[k] >= low[k]) & (x[k] <= high[k])
+        value = total - 2 * sum(projections[k] * x[k] for k in range(count)) + sum(
+            gram[i][j] * x[i] * x[j] for i in range(count) for j in range(count))
+        candidates.append(jnp.stack(x))
+        values.append(jnp.where(inside & ~jnp.isnan(value), value, jnp.inf))
+    values = jnp.stack(values)
+    best = jnp.argmin(values)
+    return jnp.stack(candidates)[best], jnp.maximum(values[best], 0.0)
+
+
+def _cholesky_solve(matrix, rhs):
+    """Solve a small SPD system given as nested lists (unrolled); also whether it is regular."""
+    size = len(rhs)
+    factor = [[None] * size for _ in range(size)]
+    regular = jnp.asarray(True)
+    for j in range(size):
+        pivot = matrix[j][j] - sum(factor[j][k] ** 2 for k in range(j))
+        regular = regular & (pivot > PIVOT_TOLERANCE * matrix[j][j])
+        root = jnp.sqrt(jnp.where(pivot > 0, pivot, 1.0))
+        factor[j][j] = root
+        for i in range(j + 1, size):
+            factor[i][j] = (matrix[i][j] - sum(factor[i][k] * factor[j][k]
+                                               for k in range(j))) / root
+    forward = []
+    for i in range(size):
+        forward.append((rhs[i] - sum(factor[i][k] * forward[k] for k in range(i)))
+                       / factor[i][i])
+    solution = [None] * size
+    for i in reversed(range(size)):
+        solution[i] = (forward[i] - sum(factor[k][i] * solution[k]
+                                        for k in range(i + 1, size))) / factor[i][i]
+    return solution, regular

@@ -26,12 +26,9 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from brdfjax.bounds import Bounds, from_free, from_unit, to_free, to_unit
+from brdfjax.bounds import Bounds, from_free, from_unit, to_free
 from brdfjax.cache import stage
 from brdfjax.objective import Problem, error, residuals
-
-# Where the Fresnel-free start puts a (see `fresnel_free`).
-FRESNEL_FREE_A = 0.04
 
 # Relative and absolute step tolerances: float64 meets 1e-10 (noise-free data reach
 # E ~ 1e-20); float32 cannot meet tighter than about 1e-6 (FIELD-NOTES.md).
@@ -42,13 +39,13 @@ class PolishResult(NamedTuple):
     """One LM run per start (leading axis: starts).
 
     Attributes:
-        free: final unconstrained coordinates, (starts, 5).
-        params: final physical parameters, (starts, 5).
+        free: final unconstrained coordinates, (starts, P).
+        params: final physical parameters, (starts, P).
         errors: E at the end, (starts,).
         success: True where optimistix reports ``successful``.
         steps: LM steps taken, (starts,); 0 for a skipped repeat.
         evaluations: model evaluations over all starts and rounds (a residual and a
-            5-column Jacobian per step; a skipped repeat costs none).
+            P-column Jacobian per step; a skipped repeat costs none).
     """
 
     free: jax.Array
@@ -90,12 +87,12 @@ def _levenberg_marquardt(starts, skipped, prob, bounds, max_steps):
 
     u, params, errors, success, steps = jax.lax.map(
         lambda args: jax.lax.cond(args[1], skip, run, args[0]), (starts, skipped))
-    evaluations = 6 * jnp.sum(jnp.where(skipped, 0, steps + 1))
+    evaluations = (1 + prob.model.size) * jnp.sum(jnp.where(skipped, 0, steps + 1))
     return PolishResult(u, params, errors, success, steps, evaluations)
 
 
 def repeats(starts) -> jax.Array:
-    """True for each row of ``starts`` (S, 5) equal to an earlier row."""
+    """True for each row of ``starts`` (S, P) equal to an earlier row."""
     same = jnp.all(starts[:, None] == starts[None], axis=-1)
     return jnp.any(jnp.tril(same, -1), axis=1)
 
@@ -111,7 +108,7 @@ def polish(starts, prob: Problem, bounds: Bounds, *, max_steps: int = 1000,
     at least the number of starts there is no screening.
 
     Args:
-        starts: unconstrained starting coordinates, (S, 5).
+        starts: unconstrained starting coordinates, (S, P).
         prob: the measurement set.
         bounds: the search box.
         max_steps, screen_steps, keep: step caps and how many starts survive screening.
@@ -137,35 +134,19 @@ def polish_population(population, prob: Problem, bounds: Bounds, *, starts: int 
 
     Each of the ``islands`` blocks of ``population`` (sorted best first within the block)
     gives ``starts // islands`` members that lie ``separation`` apart, so every basin the
-    islands found gets its own starts. One more start is the best member made
-    Fresnel-free (`fresnel_free`).
+    islands found gets its own starts. The model may add starts of its own made from the
+    best member (`brdfjax.models.Model.extra_starts`: the five-parameter model's
+    Fresnel-free start).
     """
     if starts % islands:
         raise ValueError(f"starts {starts} is not a multiple of islands {islands}")
-    blocks = population.reshape(islands, -1, 5)
+    dimensions = prob.model.size
+    blocks = population.reshape(islands, -1, dimensions)
     chosen = jax.vmap(lambda z: z[distinct_members(z, starts // islands, separation)])(blocks)
-    chosen = jnp.concatenate([chosen.reshape(-1, 5), fresnel_free(population[:1], bounds)])
+    chosen = jnp.concatenate([chosen.reshape(-1, dimensions),
+                              prob.model.extra_starts(population[:1], bounds)])
     u0 = to_free(from_unit(chosen, bounds), bounds)
     return polish(u0, prob, bounds, max_steps=max_steps, screen_steps=screen_steps, keep=keep)
-
-
-def fresnel_free(z, bounds: Bounds) -> jax.Array:
-    """Unit-cube members (last axis 5) moved to b = 0 and a = `FRESNEL_FREE_A`.
-
-    With b = 0 the Fresnel stand-in ``exp(b (1 - cos g)^a)`` is 1: the plain
-    Torrance-Sparrow lobe. Where the data's Fresnel effect is within the noise (the paper's
-    cement), the best fits lie near there, at small a and |b| < 1, where only ``a b``
-    matters: a thin valley that a population of 128 found on only 12 of 20 noisy cement
-    sets, against 20 of 20 (and 30 of 30 on 30 more seeds) with this one start added
-    (exploratory, against a long multi-start search). a starts small but not at its
-    default bound, so that LM can move it either way: 0.025 and 0.063 did as well, 0.016
-    and 0.16 worse. Where b's bounds exclude 0 the members come back unchanged (as repeats,
-    `polish` skips them); a outside its bounds is clipped to them.
-    """
-    wanted = to_unit(jnp.ones(5).at[2].set(FRESNEL_FREE_A).at[3].set(0.0), bounds)
-    wanted = jnp.clip(wanted, 0.0, 1.0)
-    moved = z.at[..., 2].set(wanted[2]).at[..., 3].set(wanted[3])
-    return jnp.where((bounds.lower[3] <= 0) & (bounds.upper[3] >= 0), moved, z)
 
 
 def distinct_members(z, count: int, separation: float = 0.02) -> jax.Array:

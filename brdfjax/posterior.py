@@ -1,4 +1,4 @@
-"""The posterior of (kb, kr, a, b, kd): likelihood, prior, and sampling it with emcee.
+"""The posterior of a model's parameters: likelihood, prior, and sampling it with emcee.
 
 Likelihood: Gaussian on the projected BRDF, the quantity Eq. (6) compares,
 
@@ -17,8 +17,8 @@ the noise model, uniform in log10 s_rel on [1e-4, 1] and in log10 s_abs on
 [1e-8, 1] x max|y|; zero outside. The posterior is therefore the likelihood restricted to
 that box, and its mode is the maximum-likelihood point.
 
-Sampling coordinates ``x``: the five unit-cube coordinates, then (noise model only) log10
-s_rel and log10 s_abs. `log_posterior` is pure JAX; `sample_posterior` hands its jitted,
+Sampling coordinates ``x``: the model's P unit-cube coordinates (five for the default
+model), then (noise model only) log10 s_rel and log10 s_abs. `log_posterior` is pure JAX; `sample_posterior` hands its jitted,
 walker-vmapped form to emcee's ``EnsembleSampler(vectorize=True)``. emcee (and h5py) are
 imported only inside `sample_posterior`, so importing this module stays light.
 
@@ -43,9 +43,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from brdfjax.bounds import Bounds, default_bounds, from_unit
-from brdfjax.geometry import PAPER_CONSTANTS, Scene, ShadowingConstants
 from brdfjax.measurements import Measurements
-from brdfjax.model import PARAMETER_NAMES, evaluate_projected
+from brdfjax.model import FIVE, evaluate_projected
+from brdfjax.models import Model, get
 from brdfjax.objective import prepare, projected
 
 # Log-uniform prior ranges of the noise model's scales: relative 0.01 % to 100 %; absolute
@@ -75,33 +75,40 @@ class Posterior(NamedTuple):
     """What the log-posterior needs (a pytree of arrays; shapes (N,) unless noted).
 
     Attributes:
-        scene: geometry terms of the N points.
+        scene: the model's geometry terms of the N points.
         target: measured projected BRDF ``y = f_r0 cos(tr)``.
         sigma: standard uncertainty of ``y`` (``sigma cos tr``), or None: noise model.
         bounds: the parameter box; its unit cube is the prior's support.
         lower, upper: the prior box of the sampling coordinates, (ndim,).
+        model: the `brdfjax.models.Model` (static: no leaves).
     """
 
-    scene: Scene
+    scene: NamedTuple
     target: jax.Array
     sigma: jax.Array | None
     bounds: Bounds
     lower: jax.Array
     upper: jax.Array
+    model: Model = FIVE
+
+    @property
+    def size(self) -> int:
+        """The model's parameter count P (the first P sampling coordinates)."""
+        return self.model.size
 
     @property
     def ndim(self) -> int:
-        """5 with given sigma, 7 with the two noise scales."""
+        """P with given sigma, P + 2 with the two noise scales."""
         return int(self.lower.shape[0])
 
     @property
     def names(self) -> tuple:
         """Names of the sampling coordinates."""
-        return PARAMETER_NAMES + (() if self.sigma is not None else NOISE_NAMES)
+        return self.model.names + (() if self.sigma is not None else NOISE_NAMES)
 
 
 def build_posterior(data: Measurements, bounds: Bounds | None = None,
-                    constants: ShadowingConstants = PAPER_CONSTANTS) -> Posterior:
+                    model: Model = FIVE) -> Posterior:
     """The likelihood's arrays and the prior box for a measurement set.
 
     Points at ``theta_r = 90 deg`` (projected BRDF 0 whatever the parameters) and points of
@@ -109,13 +116,13 @@ def build_posterior(data: Measurements, bounds: Bounds | None = None,
 
     Args:
         data: the measurements (the training subset: held-out incidences already removed).
-        bounds: the parameter box (`brdfjax.bounds.default_bounds` if None).
-        constants: the shadowing constants of Eq. (3).
+        bounds: the parameter box (the model's `brdfjax.bounds.default_bounds` if None).
+        model: the `brdfjax.models.Model`.
 
     Returns:
         A `Posterior`.
     """
-    bounds = default_bounds() if bounds is None else bounds
+    bounds = default_bounds(model) if bounds is None else bounds
     keep = np.cos(data.theta_r) > 1e-12
     if data.weights is not None:
         keep &= data.weights > 0
@@ -124,7 +131,7 @@ def build_posterior(data: Measurements, bounds: Bounds | None = None,
         raise ValueError(f"{data.name}: no measurement with theta_r < 90 deg and weight > 0")
     cos_r = np.cos(data.theta_r)
     target = data.brdf * cos_r
-    lower, upper = np.zeros(5), np.ones(5)
+    lower, upper = np.zeros(model.size), np.ones(model.size)
     sigma = None
     if data.sigma is not None:
         sigma = data.sigma * cos_r
@@ -134,48 +141,51 @@ def build_posterior(data: Measurements, bounds: Bounds | None = None,
                                                  ABSOLUTE_NOISE_RANGE[0] * scale])])
         upper = np.concatenate([upper, np.log10([RELATIVE_NOISE_RANGE[1],
                                                  ABSOLUTE_NOISE_RANGE[1] * scale])])
-    return Posterior(prepare(data, constants), target, sigma, bounds, lower, upper)
+    return Posterior(prepare(data, model), target, sigma, bounds, lower, upper, model)
 
 
 def training_setup(data: Measurements, fit, bounds: Bounds | None = None,
-                   constants: ShadowingConstants = PAPER_CONSTANTS,
+                   model: str | Model | None = None,
                    validate_incidences=None) -> tuple[Posterior, np.ndarray]:
     """The posterior of the points a fit used, and the fitted parameters to start from.
 
     Args:
         data: all measurements.
-        fit: a `brdfjax.fitting.FitResult` (its bounds, constants and held-out incidences are
-            used, and the arguments below ignored) or parameters (5,) ordered kb, kr, a, b, kd.
-        bounds, constants, validate_incidences: as for `brdfjax.fitting.fit`, when ``fit`` is
+        fit: a `brdfjax.fitting.FitResult` (its model, bounds and held-out incidences are
+            used, and the arguments below ignored) or parameters (P,) of ``model``.
+        bounds, model, validate_incidences: as for `brdfjax.fitting.fit`, when ``fit`` is
             bare parameters.
 
     Returns:
-        The `Posterior` of the training points and the starting parameters (5,).
+        The `Posterior` of the training points and the starting parameters (P,).
     """
     from brdfjax.fitting import FitResult, split
 
     if isinstance(fit, FitResult):
-        bounds, constants = fit.bounds, fit.constants
+        bounds, model = fit.bounds, fit.model
         validate_incidences = fit.validation_incidences
         start = fit.vector
     else:
+        model = get(model)
         start = np.asarray(fit, dtype=float).reshape(-1)
-        if start.shape != (5,):
-            raise ValueError(f"expected a FitResult or 5 parameters, got shape {start.shape}")
+        if start.shape != (model.size,):
+            raise ValueError(f"expected a FitResult or {model.size} parameters of the "
+                             f"{model.name} model, got shape {start.shape}")
     train, _ = split(data, validate_incidences)
-    return build_posterior(train, bounds, constants), start
+    return build_posterior(train, bounds, model), start
 
 
 def model_variance(x, model, post: Posterior) -> jax.Array:
     """Variance of each projected measurement: given, or ``(s_rel m)^2 + s_abs^2``."""
     if post.sigma is not None:
         return post.sigma**2
-    return (10.0 ** x[5] * model) ** 2 + (10.0 ** x[6]) ** 2
+    size = post.size
+    return (10.0 ** x[size] * model) ** 2 + (10.0 ** x[size + 1]) ** 2
 
 
 def log_likelihood(x, post: Posterior) -> jax.Array:
     """Gaussian log-likelihood of the projected BRDF at sampling coordinates ``x`` (ndim,)."""
-    model = evaluate_projected(from_unit(x[:5], post.bounds), post.scene)
+    model = evaluate_projected(from_unit(x[:post.size], post.bounds), post.scene, post.model)
     variance = model_variance(x, model, post)
     return -0.5 * jnp.sum((post.target - model) ** 2 / variance
                           + jnp.log(2 * jnp.pi * variance))
@@ -195,8 +205,8 @@ log_posterior_batch.__doc__ = "`log_posterior` of each row of x (walkers, ndim),
 
 
 def physical(x, post: Posterior) -> np.ndarray:
-    """Physical parameters (..., 5) from sampling coordinates (..., ndim)."""
-    return np.asarray(from_unit(np.asarray(x)[..., :5], post.bounds))
+    """Physical parameters (..., P) from sampling coordinates (..., ndim)."""
+    return np.asarray(from_unit(np.asarray(x)[..., :post.size], post.bounds))
 
 
 def summarize(samples) -> dict:
@@ -222,8 +232,9 @@ def chi2_warning(x, post: Posterior) -> str | None:
     """A sentence when given sigma do not describe the scatter at ``x``, else None."""
     if post.sigma is None:
         return None
-    model = np.asarray(projected(from_unit(np.asarray(x)[:5], post.bounds), post.scene))
-    dof = max(post.target.shape[0] - 5, 1)
+    model = np.asarray(projected(from_unit(np.asarray(x)[:post.size], post.bounds), post.scene,
+                                 post.model))
+    dof = max(post.target.shape[0] - post.size, 1)
     reduced = float(np.sum(((np.asarray(post.target) - model) / np.asarray(post.sigma)) ** 2)) / dof
     if CHI2_RANGE[0] <= reduced <= CHI2_RANGE[1]:
         return None
@@ -235,7 +246,7 @@ def chi2_warning(x, post: Posterior) -> str | None:
 
 @dataclass
 class UncertaintyResult:
-    """Posterior summaries of (kb, kr, a, b, kd), from either method, with the same fields.
+    """Posterior summaries of a model's parameters, from either method, with the same fields.
 
     Attributes:
         method: ``laplace`` (`brdfjax.laplace.laplace_approximation`) or ``mcmc``
@@ -243,15 +254,15 @@ class UncertaintyResult:
         status: ``ok`` or ``untrustworthy`` (laplace); ``converged`` or ``not_converged``
             (mcmc).
         warnings: sentences for the user; empty when nothing is wrong.
-        median: posterior medians (5,). For Laplace the posterior mode, which is the median
+        median: posterior medians (P,). For Laplace the posterior mode, which is the median
             of its Gaussian in the prior's coordinates.
-        std: standard deviations (5,) in physical units (Laplace: linearised).
-        ci68, ci95: central 68.27 % and 95 % credible intervals (5, 2).
-        covariance: physical covariance (5, 5) (Laplace: linearised).
-        correlation: correlation (5, 5) of the prior's coordinates (log10 kb, kr, a, kd and
-            asinh b); for Laplace it equals the linearised correlation of the physical
-            parameters.
-        samples: physical parameter draws (S, 5): posterior samples, or draws from the
+        std: standard deviations (P,) in physical units (Laplace: linearised).
+        ci68, ci95: central 68.27 % and 95 % credible intervals (P, 2).
+        covariance: physical covariance (P, P) (Laplace: linearised).
+        correlation: correlation (P, P) of the prior's coordinates (log10 kb, kr, a, kd and
+            asinh b for the default model); for Laplace it equals the linearised correlation
+            of the physical parameters.
+        samples: physical parameter draws (S, P): posterior samples, or draws from the
             Laplace Gaussian; bands are computed from them.
         noise: the noise model and, if inferred, each scale's median and 95 % interval.
         center, center_covariance: mean (ndim,) and covariance (ndim, ndim) of the sampling
@@ -260,6 +271,7 @@ class UncertaintyResult:
         timings: wall seconds.
         chain: emcee's chain (steps, walkers, ndim) in sampling coordinates; None for Laplace.
         bounds: the parameter box of the prior.
+        model: the `brdfjax.models.Model`.
     """
 
     method: str
@@ -279,13 +291,14 @@ class UncertaintyResult:
     timings: dict
     chain: np.ndarray | None = field(repr=False, default=None)
     bounds: Bounds = field(repr=False, default_factory=default_bounds)
+    model: Model = field(default=FIVE)
 
     def summaries(self) -> dict:
         """``{name: {"median", "std", "ci68": [lo, hi], "ci95": [lo, hi]}}`` per parameter."""
         return {name: {"median": float(self.median[k]), "std": float(self.std[k]),
                        "ci68": [float(v) for v in self.ci68[k]],
                        "ci95": [float(v) for v in self.ci95[k]]}
-                for k, name in enumerate(PARAMETER_NAMES)}
+                for k, name in enumerate(self.model.names)}
 
     def to_dict(self) -> dict:
         """A JSON-ready summary (what ``brdfjax fit --json`` writes under "uncertainty")."""
@@ -295,8 +308,8 @@ class UncertaintyResult:
             "warnings": list(self.warnings),
             "params": self.summaries(),
             "correlation": {a: {b: float(self.correlation[i, j])
-                                for j, b in enumerate(PARAMETER_NAMES)}
-                            for i, a in enumerate(PARAMETER_NAMES)},
+                                for j, b in enumerate(self.model.names)}
+                            for i, a in enumerate(self.model.names)},
             "noise": self.noise,
             "diagnostics": self.diagnostics,
             "timings": self.timings,
@@ -315,14 +328,18 @@ class UncertaintyResult:
                  "  (the likelihood weights points by 1/variance, Eq. 6 alike: medians "
                  + "need not equal the fit)",
                  f"  {'':>3} {'median':>12} {'std':>11}   {'68 % interval':<27} 95 % interval"]
-        for k, name in enumerate(PARAMETER_NAMES):
-            lines.append(f"  {name:>3} {self.median[k]:12.6g} {self.std[k]:11.4g}   "
+        names = self.model.names
+        width = max(3, *map(len, names))
+        lines[-1] = lines[-1].replace(f"  {'':>3} ", f"  {'':>{width}} ", 1)
+        for k, name in enumerate(names):
+            lines.append(f"  {name:>{width}} {self.median[k]:12.6g} {self.std[k]:11.4g}   "
                          f"{_interval(self.ci68[k]):<27} {_interval(self.ci95[k])}")
-        pairs = sorted(((abs(self.correlation[i, j]), i, j) for i in range(5)
-                        for j in range(i + 1, 5)), reverse=True)[:3]
-        lines.append("  strongest correlations: " + ", ".join(
-            f"{PARAMETER_NAMES[i]}-{PARAMETER_NAMES[j]} {self.correlation[i, j]:+.3f}"
-            for _, i, j in pairs))
+        size = len(names)
+        pairs = sorted(((abs(self.correlation[i, j]), i, j) for i in range(size)
+                        for j in range(i + 1, size)), reverse=True)[:3]
+        if pairs:
+            lines.append("  strongest correlations: " + ", ".join(
+                f"{names[i]}-{names[j]} {self.correlation[i, j]:+.3f}" for _, i, j in pairs))
         lines += [f"  warning: {text}" for text in self.warnings]
         return "\n".join(lines)
 
@@ -468,7 +485,7 @@ def sample_posterior(data: Measurements, fit, *, walkers: int = 32, max_steps: i
                      check_every: int = 250, stop_when_converged: bool = True, seed: int = 0,
                      chain_path=None, progress: bool = True,
                      start: UncertaintyResult | None = None, bounds: Bounds | None = None,
-                     constants: ShadowingConstants = PAPER_CONSTANTS,
+                     model: str | Model | None = None,
                      validate_incidences=None) -> UncertaintyResult:
     """Sample the posterior with emcee until the chain is longer than 50 autocorrelation times.
 
@@ -481,7 +498,7 @@ def sample_posterior(data: Measurements, fit, *, walkers: int = 32, max_steps: i
 
     Args:
         data: all measurements.
-        fit: a `brdfjax.fitting.FitResult`, or parameters (5,) (see `training_setup`).
+        fit: a `brdfjax.fitting.FitResult`, or parameters (P,) (see `training_setup`).
         walkers: ensemble size (at least twice the number of sampled coordinates).
         max_steps: cap on the chain length (a resumed chain counts its stored steps).
         check_every: steps between convergence checks.
@@ -492,7 +509,7 @@ def sample_posterior(data: Measurements, fit, *, walkers: int = 32, max_steps: i
             already holds a chain of the same shape, sampling resumes from its last step.
         progress: show a tqdm progress bar.
         start: a Laplace `UncertaintyResult` of the same data to start the walkers from.
-        bounds, constants, validate_incidences: see `training_setup`.
+        bounds, model, validate_incidences: see `training_setup`.
 
     Returns:
         An `UncertaintyResult` with method ``mcmc``.
@@ -500,7 +517,7 @@ def sample_posterior(data: Measurements, fit, *, walkers: int = 32, max_steps: i
     import emcee
     from tqdm import tqdm
 
-    post, _ = training_setup(data, fit, bounds, constants, validate_incidences)
+    post, _ = training_setup(data, fit, bounds, model, validate_incidences)
     if walkers < 2 * post.ndim:
         raise ValueError(f"emcee needs at least {2 * post.ndim} walkers for {post.ndim} "
                          f"sampled coordinates, got {walkers}")
@@ -529,7 +546,7 @@ def sample_posterior(data: Measurements, fit, *, walkers: int = 32, max_steps: i
         if start is None:
             from brdfjax.laplace import laplace_approximation
 
-            start = laplace_approximation(data, fit, bounds=post.bounds, constants=constants,
+            start = laplace_approximation(data, fit, bounds=post.bounds, model=post.model,
                                           validate_incidences=validate_incidences, draws=0)
         rng = np.random.default_rng(seed)
         state = _starting_walkers(start, post, walkers, rng)
@@ -580,8 +597,8 @@ def _mcmc_result(sampler, post: Posterior, tau, chain_path, timings) -> Uncertai
     for text in messages:
         warnings.warn(text, UncertaintyWarning, stacklevel=3)
     noise = noise_summary(post)
-    if post.ndim > 5:
-        scales = summarize(flat[:, 5:])
+    if post.ndim > post.size:
+        scales = summarize(flat[:, post.size:])
         noise = noise_summary(post, scales["median"], scales["ci95"])
     ess = walkers * (steps - burn_in) / tau
     acceptance = np.asarray(sampler.acceptance_fraction)
@@ -598,9 +615,9 @@ def _mcmc_result(sampler, post: Posterior, tau, chain_path, timings) -> Uncertai
     return UncertaintyResult(
         method="mcmc", status=status, warnings=messages, median=stats["median"],
         std=stats["std"], ci68=stats["ci68"], ci95=stats["ci95"],
-        covariance=np.cov(samples.T), correlation=np.corrcoef(flat[:, :5].T),
+        covariance=np.atleast_2d(np.cov(samples.T)), correlation=np.atleast_2d(np.corrcoef(flat[:, :post.size].T)),
         samples=samples, noise=noise,
         center=np.mean(flat, axis=0), center_covariance=np.cov(flat.T),
         diagnostics=diagnostics, timings=timings, chain=sampler.get_chain(),
-        bounds=post.bounds)
+        bounds=post.bounds, model=post.model)
 

@@ -11,9 +11,10 @@ from transcription import brdf as transcribed
 from brdfjax.bounds import default_bounds, from_free, from_unit, make_bounds, to_free, to_unit
 from brdfjax.evolve import evolve
 from brdfjax.fitting import fit
-from brdfjax.model import PAPER_SAMPLES, evaluate
-from brdfjax.objective import _scene, linear_coefficients, problem, projected
-from brdfjax.polish import FRESNEL_FREE_A, fresnel_free, polish, polish_population
+from brdfjax.model import FIVE, PAPER_SAMPLES, evaluate
+from brdfjax.models.five import FRESNEL_FREE_A
+from brdfjax.objective import _geometry, problem, projected, solve_linear
+from brdfjax.polish import polish, polish_population
 from brdfjax.synthetic import paper_sample
 
 
@@ -93,10 +94,10 @@ def test_parameter_at_a_bound_is_reported(clean_white_paint):
 
 def test_second_fit_of_same_shaped_data_does_not_recompile(clean_white_paint):
     fit(clean_white_paint, seed=1)
-    compiled = [f._cache_size() for f in (evolve, polish_population, polish, _scene)]
+    compiled = [f._cache_size() for f in (evolve, polish_population, polish, _geometry)]
     other = paper_sample("white_paint", noise=0.01, seed=5)
     fit(other, seed=2, bounds=make_bounds({"b": (-90.0, 20.0)}))  # new data, new bounds
-    assert [f._cache_size() for f in (evolve, polish_population, polish, _scene)] == compiled
+    assert [f._cache_size() for f in (evolve, polish_population, polish, _geometry)] == compiled
 
 
 def test_repeated_starts_are_skipped_and_change_nothing(clean_white_paint):
@@ -118,7 +119,7 @@ def test_repeated_starts_are_skipped_and_change_nothing(clean_white_paint):
 
 def test_fresnel_free_start(clean_white_paint):
     prob, bounds = problem(clean_white_paint), default_bounds()
-    free = from_unit(fresnel_free(jax.numpy.full(5, 0.7), bounds), bounds)
+    free = from_unit(FIVE.extra_starts(jax.numpy.full((1, 5), 0.7), bounds)[0], bounds)
     assert free[3] == 0.0 and free[2] == pytest.approx(FRESNEL_FREE_A, rel=1e-12)
     other_a = free.at[2].set(30.0)  # with b = 0, R0 = 1 whatever a is
     np.testing.assert_array_equal(evaluate(free, prob.scene), evaluate(other_a, prob.scene))
@@ -160,7 +161,7 @@ def test_bound_transforms_round_trip():
         make_bounds({}, scales={"b": "log"})
 
 
-LINEAR_SOLVE = jax.jit(linear_coefficients)
+LINEAR_SOLVE = jax.jit(solve_linear)
 
 
 @settings(max_examples=60, deadline=None)
@@ -172,7 +173,8 @@ def test_linear_coefficients_match_bounded_least_squares(white_paint, kr, a, b, 
     """kb, kd and E of the exact 2-D solve equal SciPy's bounded linear least squares."""
     prob = problem(white_paint.at_incidences([10, 30]))
     bounds = make_bounds({"kb": kb_range, "kd": kd_range})
-    kb, kd, e = map(float, LINEAR_SOLVE((kr, a, b), prob, bounds))
+    solved, e = LINEAR_SOLVE(np.array([1.0, kr, a, b, 1.0]), prob, bounds)
+    kb, kd, e = float(solved[0]), float(solved[4]), float(e)
     # SciPy on the same columns: the projected lobe (kb = 1, kd = 0) and cos(tr)
     lobe = np.asarray(projected(np.array([1.0, kr, a, b, 0.0]), prob.scene))
     root = np.sqrt(np.asarray(prob.weight))

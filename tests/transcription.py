@@ -1,25 +1,112 @@
-"""A line-by-line numpy transcription of the paper's Eq. (1), (3), (4), (5).
+"""Line-by-line numpy transcriptions of the paper's Eq. (1)-(5) and of ``MODELS.md``.
 
-Independent of brdfjax's rearranged formulas: valid at generic points only (it divides by
-zero at the specular point and at grazing angles, exactly where the paper's form breaks).
+Independent of brdfjax's rearranged formulas: valid at generic points only (they divide by
+zero at the specular point and at grazing angles, exactly where the printed forms break).
+Every function takes numpy arrays (``np.longdouble`` for a reference to the last digits).
 """
+
+import math
 
 import numpy as np
 
-SIGMA_SPH, SIGMA_R, U_SPH, V_SPH = 0.0136, 0.0141, 9.0, 1.0
+PAPER_CONSTANTS = (0.0136, 0.0141, 9.0, 1.0)  # sigma_sph, sigma_r, u_sph, v_sph
 
 
-def brdf(kb, kr, a, b, kd, ti, tr, pr):
+def directions(ti, tr, pr):
+    """w_i = (sin ti, 0, cos ti) and w_r = (sin tr cos pr, sin tr sin pr, cos tr)."""
+    zero = np.zeros_like(ti * tr * pr)
+    w_i = np.stack([np.sin(ti) + zero, zero, np.cos(ti) + zero])
+    w_r = np.stack([np.sin(tr) * np.cos(pr), np.sin(tr) * np.sin(pr), np.cos(tr) + zero])
+    return w_i, w_r
+
+
+def half_vector(ti, tr, pr):
+    """cos th = h_z and cos td = w_i . h with h = (w_i + w_r) / |w_i + w_r|."""
+    w_i, w_r = directions(ti, tr, pr)
+    s = w_i + w_r
+    h = s / np.sqrt(np.sum(s * s, axis=0))
+    return h[2], np.sum(w_i * h, axis=0)
+
+
+def shadowing(ti, tr, pr, constants=PAPER_CONSTANTS):
+    """G of Eq. (3)-(4) as printed, and the facet tilt alpha and cos gamma of Eq. (1)."""
+    sigma_sph, sigma_r, u_sph, v_sph = constants
     cos_g = np.sqrt(0.5 * (np.cos(ti) * np.cos(tr) + np.sin(ti) * np.sin(tr) * np.cos(pr) + 1))
     cos_alpha = (np.cos(ti) + np.cos(tr)) / (2 * cos_g)
     alpha = np.arccos(np.clip(cos_alpha, -1, 1))
-    w = SIGMA_SPH * (1 + U_SPH * np.sin(alpha) / (np.sin(alpha) + V_SPH * np.cos(alpha)))
+    w = sigma_sph * (1 + u_sph * np.sin(alpha) / (np.sin(alpha) + v_sph * np.cos(alpha)))
     denom = 2 * np.sin(alpha) * cos_g
     tan_i = np.tan(ti) * (np.sin(ti) + np.sin(tr) * np.cos(pr)) / denom
     tan_r = np.tan(tr) * (np.sin(tr) + np.sin(ti) * np.cos(pr)) / denom
     tan_g = np.abs(np.cos(ti) - cos_g) / denom
-    G = (1 + w * np.abs(tan_i * tan_r) / (1 + SIGMA_R * tan_g)) / (
+    G = (1 + w * np.abs(tan_i * tan_r) / (1 + sigma_r * tan_g)) / (
         (1 + w * tan_i**2) * (1 + w * tan_r**2))
+    return G, alpha, cos_g
+
+
+def brdf(kb, kr, a, b, kd, ti, tr, pr, constants=PAPER_CONSTANTS):
+    """The five-parameter model, Eq. (5)."""
+    G, alpha, cos_g = shadowing(ti, tr, pr, constants)
     D = kr**2 * np.cos(alpha) / (1 + (kr**2 - 1) * np.cos(alpha) ** 2)
     R0 = np.exp(b * (1 - cos_g) ** a)
     return kb * D * R0 * G / np.cos(tr) + kd
+
+
+def torrance_sparrow(g, c, n, rho0, ti, tr, pr):
+    """The paper's Eq. (2) as MODELS.md writes it out."""
+    G, _, _ = shadowing(ti, tr, pr)
+    cos_th, cos_td = half_vector(ti, tr, pr)
+    th = np.arccos(cos_th)
+    sin_tt = np.sin(np.arccos(cos_td)) / n
+    cos_tt = np.cos(np.arcsin(sin_tt))
+    R = ((cos_td - n * cos_tt) ** 2 / (cos_td + n * cos_tt) ** 2
+         + (n * cos_td - cos_tt) ** 2 / (n * cos_td + cos_tt) ** 2) / 2
+    return g * R * G / np.cos(tr) * np.exp(-(c**2) * th**2) + rho0 / np.pi * np.cos(ti)
+
+
+def schlick(f0, cos_td):
+    return f0 + (1 - f0) * (1 - cos_td) ** 5
+
+
+def ggx(ks, alpha, f0, kd, ti, tr, pr):
+    cos_th, cos_td = half_vector(ti, tr, pr)
+    D = alpha**2 / (np.pi * (cos_th**2 * (alpha**2 - 1) + 1) ** 2)
+
+    def G1(t):
+        return 2 / (1 + np.sqrt(1 + alpha**2 * np.tan(t) ** 2))
+
+    return kd + ks * D * G1(ti) * G1(tr) * schlick(f0, cos_td) / (4 * np.cos(ti) * np.cos(tr))
+
+
+_erf = np.vectorize(math.erf, otypes=[float])
+
+
+def beckmann(ks, alpha, f0, kd, ti, tr, pr):
+    cos_th, cos_td = half_vector(ti, tr, pr)
+    tan2_th = (1 - cos_th**2) / cos_th**2
+    D = np.exp(-tan2_th / alpha**2) / (np.pi * alpha**2 * cos_th**4)
+
+    def G1(t):
+        m = 1 / (alpha * np.tan(t))
+        lam = (_erf(np.asarray(m, dtype=float)) - 1) / 2 + np.exp(-(m**2)) / (2 * m * np.sqrt(np.pi))
+        return 1 / (1 + lam)
+
+    return kd + ks * D * G1(ti) * G1(tr) * schlick(f0, cos_td) / (4 * np.cos(ti) * np.cos(tr))
+
+
+def lambert(kd, ti, tr, pr):
+    return kd + 0 * (ti + tr + pr)
+
+
+def rpv(rho0, k, asymmetry, rhoc, ti, tr, pr):
+    M = np.cos(ti) ** (k - 1) * np.cos(tr) ** (k - 1) / (np.cos(ti) + np.cos(tr)) ** (1 - k)
+    w_i, w_r = directions(ti, tr, pr)
+    cos_g = np.sum(w_i * w_r, axis=0)
+    F = (1 - asymmetry**2) / (1 + 2 * asymmetry * cos_g + asymmetry**2) ** 1.5
+    Gd = np.sqrt(np.tan(ti) ** 2 + np.tan(tr) ** 2 - 2 * np.tan(ti) * np.tan(tr) * np.cos(pr))
+    H = 1 + (1 - rhoc) / (1 + Gd)
+    return rho0 / np.pi * M * F * H
+
+
+MODELS = {"five": brdf, "torrance-sparrow": torrance_sparrow, "ggx": ggx,
+          "beckmann": beckmann, "lambert": lambert, "rpv": rpv}

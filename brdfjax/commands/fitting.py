@@ -165,11 +165,11 @@ def write_outputs(result, data, args, uncertainty=None) -> None:
         if args.json:
             record["uncertainty"] = uncertainty.to_dict()
             record["uncertainty"]["reflectance"] = reflectance_bands(
-                uncertainty.samples, REFLECTANCE_INCIDENCES, constants=result.constants,
+                uncertainty.samples, REFLECTANCE_INCIDENCES, model=result.model,
                 seed=args.seed).to_dict()
         if args.plot:
             bands = curve_bands(uncertainty.samples, data.incidences_deg,
-                                constants=result.constants)
+                                model=result.model)
     if args.json:
         write_atomically(args.json, json.dumps(record, indent=2) + "\n")
     if args.plot:
@@ -213,7 +213,7 @@ def summary(result, name: str) -> str:
         for deg, e in result.validation_by_incidence.items():
             lines.append(f"        {deg:6g} deg: E = {100 * e:.4g} %")
     rho = np.asarray(reflectance(result.params, np.radians(SUMMARY_INCIDENCES),
-                                 constants=result.constants))
+                                 model=result.model))
     lines.append("  reflectance rho(" + ", ".join(f"{x:g}" for x in SUMMARY_INCIDENCES)
                  + " deg) = " + ", ".join(f"{r:.4f}" for r in rho))
     warning = energy_warning(rho)

@@ -1,0 +1,67 @@
+"""The family of BRDF models that brdfjax fits, one module each.
+
+| name | parameters | module |
+|---|---|---|
+| ``five`` (default) | kb, kr, a, b, kd | `brdfjax.models.five` (the paper's Eq. 5) |
+| ``torrance-sparrow`` | g, c, n, rho0 | `brdfjax.models.torrance_sparrow` (Eq. 2) |
+| ``ggx`` | ks, alpha, f0, kd | `brdfjax.models.ggx` |
+| ``beckmann`` | ks, alpha, f0, kd | `brdfjax.models.beckmann` |
+| ``lambert`` | kd | `brdfjax.models.lambert` |
+| ``rpv`` | rho0, k, asymmetry, rhoc | `brdfjax.models.rpv` |
+
+A model is found by its module: every module of this package whose name does not start
+with ``_`` is imported on the first lookup, and each `Model` subclass in it with a ``name``
+is registered. Adding a model is therefore one new file (see the README, "Adding a model").
+"""
+
+from __future__ import annotations
+
+import importlib
+import inspect
+import pkgutil
+
+from brdfjax.models.base import Model, Parameter
+
+DEFAULT = "five"
+_registry: dict[str, type[Model]] = {}
+
+__all__ = ["DEFAULT", "Model", "Parameter", "available", "get"]
+
+
+def _discover() -> dict[str, type[Model]]:
+    if not _registry:
+        for module in pkgutil.iter_modules(__path__):
+            if module.name.startswith("_") or module.name == "base":
+                continue
+            for _, cls in inspect.getmembers(importlib.import_module(f"{__name__}.{module.name}"),
+                                             inspect.isclass):
+                if issubclass(cls, Model) and "name" in cls.__dict__:
+                    _registry[cls.name] = cls
+        order = [DEFAULT] + sorted(set(_registry) - {DEFAULT})
+        _registry.update({name: _registry.pop(name) for name in order})
+    return _registry
+
+
+def available() -> tuple[str, ...]:
+    """The names of every model, the default first."""
+    return tuple(_discover())
+
+
+def get(model: str | Model | None = None, constants=None) -> Model:
+    """A model instance from its name (or the instance itself); None is the default.
+
+    Args:
+        model: a name of `available`, a `Model`, or None for ``five``.
+        constants: shadowing constants of Eq. (3) for models with a G term (None keeps
+            the paper's).
+    """
+    if model is None:
+        model = DEFAULT
+    if isinstance(model, str):
+        registry = _discover()
+        if model not in registry:
+            raise ValueError(f"unknown model {model!r}; choose one of {', '.join(registry)}")
+        model = registry[model]()
+    if not isinstance(model, Model):
+        raise TypeError(f"expected a model name or a brdfjax.models.Model, got {model!r}")
+    return model if constants is None else model.with_constants(constants)

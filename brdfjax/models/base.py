@@ -1,0 +1,161 @@
+"""What every BRDF model provides to the engine: names, search box, geometry, formula.
+
+A model is a small frozen dataclass (hashable, so it is a static part of every compiled
+function: jit, vmap and grad see it as a pytree without leaves) that declares:
+
+- `Model.parameters`: each parameter's name, default search range, the scale it is
+  searched on (``linear``, ``log10`` or ``asinh``) and the reason for that range;
+- `Model.geometry`: the parameter-free terms it needs at each measurement point
+  (precomputed once per data set, so a model pays only for what it uses);
+- `Model.evaluate`: f_r in 1/sr from a parameter vector and that geometry;
+- `Model.columns`, `Model.coefficient_bounds` and `Model.assemble`: the split into
+  coefficients that enter f_r linearly and the other parameters, so that the genetic
+  search solves the linear ones exactly and searches only the others (variable
+  projection, Golub and Pereyra 1973);
+- optionally `Model.extra_starts` (polish starts of its own) and `Model.peak` (where the
+  reflectance quadrature should put its densest nodes).
+
+Nothing in the engine (objective, search, polish, uncertainty, batch) knows which model
+it runs. Adding a model is one new module in `brdfjax.models` with a `Model` subclass.
+"""
+
+from __future__ import annotations
+
+import collections
+from dataclasses import dataclass
+from typing import ClassVar, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One model parameter: its name, default search range and scale, and why.
+
+    Attributes:
+        name: the name used in files, arrays, JSON and tables.
+        low, high: the default search range.
+        scale: ``linear``, ``log10`` (positive parameters spanning decades) or ``asinh``
+            (either sign, linear near zero and logarithmic beyond 1).
+        reason: why this range (shown in the docs and ``brdfjax models --help``).
+    """
+
+    name: str
+    low: float
+    high: float
+    scale: str
+    reason: str
+
+
+def array_module(*values):
+    """``jax.numpy`` if any value holds a JAX array (or tracer), else ``numpy``.
+
+    Host-side bookkeeping (a parameter vector, a bounds transform) then runs in NumPy: in a
+    new process every JAX operation outside a compiled stage costs a compilation.
+    """
+    return jnp if any(isinstance(v, jax.Array) for v in jax.tree.leaves(values)) else np
+
+
+def as_vector(params):
+    """A parameter vector (last axis: the model's parameters) from a named tuple or array."""
+    if isinstance(params, tuple):  # a model's Params named tuple
+        xp = array_module(*params)
+        return xp.stack([xp.asarray(x) for x in params], axis=-1)
+    return array_module(params).asarray(params)
+
+
+class Model:
+    """The interface every BRDF model implements (subclass it as a frozen dataclass).
+
+    Class attributes:
+        name: the model's name on the command line and in files (``ggx``).
+        summary: one line on when to use it.
+        parameters: the `Parameter` s, in the order of every parameter vector.
+        linear: names of the coefficients that enter f_r linearly (see `columns`).
+        peak: ``backscatter`` or ``specular``: where f_r may be sharply peaked, for the
+            reflectance quadrature of Eq. (9); ``none`` for smooth models.
+        Params: a named tuple of the parameters (made from `parameters` if not given).
+    """
+
+    name: ClassVar[str]
+    summary: ClassVar[str]
+    parameters: ClassVar[tuple[Parameter, ...]]
+    linear: ClassVar[tuple[str, ...]]
+    peak: ClassVar[str] = "none"
+    Params: ClassVar[type]
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        if "Params" not in cls.__dict__ and "parameters" in cls.__dict__:
+            cls.Params = collections.namedtuple(
+                f"{cls.__name__}Params", [p.name for p in cls.parameters])
+        jax.tree_util.register_static(cls)  # a static pytree: hashable, no leaves
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The parameter names, in order."""
+        return tuple(p.name for p in self.parameters)
+
+    @property
+    def size(self) -> int:
+        """The number of parameters."""
+        return len(self.parameters)
+
+    def index(self, name: str) -> int:
+        """The position of parameter ``name`` in a parameter vector."""
+        return self.names.index(name)
+
+    def geometry(self, theta_i, theta_r, phi_r, in_plane: bool) -> NamedTuple:
+        """The parameter-free terms at broadcast angle arrays (radians).
+
+        Returns a named tuple of arrays of one shape with at least a ``cos_theta_r`` field
+        (the projection of Eq. 6). ``in_plane`` is True when every ``phi_r`` is 0 or pi,
+        where a model may use exact closed forms.
+        """
+        raise NotImplementedError
+
+    def evaluate(self, params, geometry) -> jax.Array:
+        """f_r (1/sr) from a parameter vector (P,) on this model's geometry."""
+        raise NotImplementedError
+
+    def columns(self, params, geometry) -> tuple[list, list]:
+        """The linear split: ``f_r = sum_k c_k unit_k column_k`` at fixed other parameters.
+
+        Returns:
+            ``(columns, units)``: K arrays with the geometry's shape, and K scalars. The
+            coefficients ``c_k`` are those of `coefficient_bounds` and `assemble`;
+            ``units`` lets a model return a rescaled column (one that would overflow
+            otherwise), 1 elsewhere.
+        """
+        raise NotImplementedError
+
+    def coefficient_bounds(self, bounds) -> tuple:
+        """Bounds (K,), (K,) of the linear coefficients from the parameters' `Bounds`."""
+        raise NotImplementedError
+
+    def assemble(self, coefficients, params, bounds):
+        """The parameter vector (P,) with its linear part set from ``coefficients`` (K,)."""
+        raise NotImplementedError
+
+    def extra_starts(self, z, bounds):
+        """More polish starts (E, P) in unit-cube coordinates, made from the best member
+        ``z`` (1, P); none by default."""
+        return z[:0]
+
+    def with_constants(self, constants) -> Model:
+        """This model with other shadowing constants (only models with a G term take any)."""
+        raise ValueError(f"the {self.name} model has no shadowing constants to set")
+
+
+def safe_divide(numerator, denominator, where, fallback):
+    """numerator / denominator where ``where``, else ``fallback``, with finite gradients."""
+    safe = jnp.where(where, denominator, 1.0)
+    return jnp.where(where, numerator / safe, fallback)
+
+
+def safe_sqrt(x):
+    """sqrt(x) with a zero (not infinite) derivative at x = 0."""
+    positive = x > 0
+    return jnp.where(positive, jnp.sqrt(jnp.where(positive, x, 1.0)), 0.0)

@@ -1,0 +1,47 @@
+"""The Lambertian model: a constant BRDF ``f_r = kd`` (reflectance ``pi kd`` at every
+incidence). One linear parameter: the fit is a weighted mean, solved exactly."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import jax.numpy as jnp
+
+from brdfjax.models.base import Model, Parameter
+
+
+class LambertGeometry(NamedTuple):
+    """The only geometry a constant BRDF needs: the projection of Eq. (6)."""
+
+    cos_theta_r: jnp.ndarray
+
+
+@dataclass(frozen=True)
+class Lambert(Model):
+    """A perfectly diffuse surface."""
+
+    name = "lambert"
+    summary = ("a constant BRDF: the null model every other must beat, and matte "
+               "references such as PTFE or Spectralon at small angles")
+    parameters = (Parameter("kd", 1e-8, 1e2, "log10",
+                            "from black coatings to well above any physical albedo (1/pi)"),)
+    linear = ("kd",)
+
+    def geometry(self, theta_i, theta_r, phi_r, in_plane):
+        theta_i, theta_r, phi_r = jnp.broadcast_arrays(
+            *(jnp.asarray(x, dtype=jnp.result_type(float, theta_i, theta_r, phi_r))
+              for x in (theta_i, theta_r, phi_r)))
+        return LambertGeometry(jnp.cos(theta_r))
+
+    def evaluate(self, params, geometry):
+        return params[0] * jnp.ones_like(geometry.cos_theta_r)
+
+    def columns(self, params, geometry):
+        return [jnp.ones_like(geometry.cos_theta_r)], [1.0]
+
+    def coefficient_bounds(self, bounds):
+        return bounds.lower, bounds.upper
+
+    def assemble(self, coefficients, params, bounds):
+        return coefficients

@@ -1,0 +1,233 @@
+"""Every model of the family: against a transcription of MODELS.md, finite on its whole
+domain, exact linear solves, its reflectance, and fits that recover it."""
+
+import functools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+import transcription
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.integrate import dblquad
+from scipy.optimize import lsq_linear
+
+import brdfjax
+from brdfjax.bounds import default_bounds, from_unit
+from brdfjax.hemispherical import reflectance
+from brdfjax.measurements import Measurements
+from brdfjax.model import brdf, evaluate
+from brdfjax.models import available, get
+from brdfjax.objective import problem, projected, solve_linear
+
+HALF_PI = np.pi / 2
+NAMES = available()
+# Parameter sets inside each model's box: fits of real runs, and the corners of use.
+EXAMPLES = {
+    "five": [tuple(p) for p in brdfjax.PAPER_SAMPLES.values()],
+    "torrance-sparrow": [(4.03, 3.0, 1.27, 0.0019), (0.3, 20.0, 1.5, 0.5), (1e-3, 0.5, 3.0, 1.0)],
+    "ggx": [(1.94, 0.348, 0.045, 1e-8), (0.5, 0.05, 0.9, 0.1), (5.0, 1.2, 0.2, 1e-4)],
+    "beckmann": [(0.72, 0.281, 0.076, 0.0027), (0.5, 0.05, 0.9, 0.1), (5.0, 0.9, 0.2, 1e-4)],
+    "lambert": [(0.2,), (1e-6,)],
+    "rpv": [(0.3, 0.7, -0.2, 0.5), (0.05, 1.3, 0.4, -1.0), (1.0, 0.9, -0.8, 1.5)],
+}
+CASES = [(name, params) for name in NAMES for params in EXAMPLES[name]]
+IDS = [f"{name}-{k}" for name in NAMES for k in range(len(EXAMPLES[name]))]
+
+
+def test_every_model_has_examples_and_the_default_comes_first():
+    assert set(EXAMPLES) == set(NAMES) and NAMES[0] == "five"
+    assert set(transcription.MODELS) == set(NAMES)
+
+
+def generic_points(count, seed, in_plane):
+    """Random angles away from the points where the printed formulas divide by zero."""
+    rng = np.random.default_rng(seed)
+    ti, tr = rng.uniform(0.02, 1.45, (2, 4 * count))
+    pr = (np.where(rng.random(4 * count) < 0.5, 0.0, np.pi) if in_plane
+          else rng.uniform(0, 2 * np.pi, 4 * count))
+    far = (np.abs(ti - tr) > 0.02) | (np.abs(np.sin(pr / 2)) < 0.9)
+    return ti[far][:count], tr[far][:count], pr[far][:count]
+
+
+@pytest.mark.parametrize("in_plane", [False, True])
+@pytest.mark.parametrize(("name", "params"), CASES, ids=IDS)
+def test_matches_transcription_to_1e12(name, params, in_plane):
+    ti, tr, pr = generic_points(500, 11, in_plane)
+    wide = np.longdouble if name != "beckmann" else float  # math.erf is float64
+    exact = transcription.MODELS[name](*(wide(p) for p in params),
+                                       *(x.astype(wide) for x in (ti, tr, pr)))
+    got = np.asarray(brdf(np.array(params), ti, tr, pr, model=name))
+    np.testing.assert_allclose(got, np.asarray(exact, dtype=float), rtol=1e-12, atol=0)
+
+
+@functools.cache
+def value_and_grads(name):
+    model = get(name)
+
+    def f(params, angles):
+        return evaluate(params, model.geometry(*angles, in_plane=False), model)
+
+    return jax.jit(lambda p, a: (f(p, a), *jax.grad(f, argnums=(0, 1))(p, a)))
+
+
+def all_finite(*trees):
+    return all(bool(jnp.all(jnp.isfinite(x))) for x in jax.tree.leaves(trees))
+
+
+EDGES = [0.0, HALF_PI]
+angle = st.floats(0.0, HALF_PI) | st.sampled_from(EDGES)
+azimuth = st.floats(-2 * np.pi, 4 * np.pi) | st.sampled_from([0.0, np.pi, -np.pi, 2 * np.pi])
+unit = st.floats(0.0, 1.0) | st.sampled_from([0.0, 1.0])
+
+
+@pytest.mark.parametrize("name", NAMES)
+@settings(max_examples=150, deadline=None)
+@given(z=st.lists(unit, min_size=5, max_size=5), ti=angle, tr=angle, pr=azimuth)
+def test_finite_everywhere(name, z, ti, tr, pr):
+    """Values and gradients (parameters and angles) finite anywhere in the box, edges too."""
+    bounds = default_bounds(name)
+    params = from_unit(np.array(z[:bounds.lower.size]), bounds)
+    values = value_and_grads(name)(jnp.asarray(params), tuple(map(jnp.asarray, (ti, tr, pr))))
+    assert all_finite(values)
+
+
+@pytest.mark.parametrize(("name", "params"), CASES, ids=IDS)
+def test_gradients_match_finite_differences(name, params):
+    rng = np.random.default_rng(3)
+    p = np.array(params, dtype=float)
+    for ti, tr, pr in zip(*generic_points(5, 4, in_plane=False)):
+        _, grad_p, _ = value_and_grads(name)(jnp.asarray(p), tuple(map(jnp.asarray,
+                                                                       (ti, tr, pr))))
+        for k in range(p.size):
+            h = 1e-6 * max(abs(p[k]), 1e-3)
+            up, down = p.copy(), p.copy()
+            up[k] += h
+            down[k] -= h
+            fd = (float(brdf(up, ti, tr, pr, model=name))
+                  - float(brdf(down, ti, tr, pr, model=name))) / (2 * h)
+            assert float(grad_p[k]) == pytest.approx(fd, rel=1e-5, abs=1e-9), (k, rng)
+
+
+@pytest.mark.parametrize("name", ["five", "torrance-sparrow", "ggx", "beckmann"])
+def test_grazing_and_specular_values_are_the_limits(name):
+    """At tr = 90 deg and at the specular point the code gives the printed formula's limit."""
+    p = np.array(EXAMPLES[name][0])
+    for ti, tr, pr, step in ((0.5, HALF_PI, 1.0, (0.0, -1e-7)), (0.5, HALF_PI, np.pi, (0.0, -1e-7)),
+                             (0.6, 0.6, np.pi, (0.0, 1e-6))):
+        at = float(brdf(p, ti, tr, pr, model=name))
+        near = float(transcription.MODELS[name](*p, ti + step[0], tr + step[1], pr))
+        assert at == pytest.approx(near, rel=1e-5, abs=1e-12)
+
+
+def test_rpv_at_90_degrees_is_finite_and_its_projection_vanishes():
+    """RPV is outside its domain at 90 deg: the cosine floor keeps it finite (documented)."""
+    p = np.array(EXAMPLES["rpv"][0])  # k < 1: M diverges at the edge
+    assert np.isfinite(float(brdf(p, 0.4, HALF_PI, 1.0, model="rpv")))
+    assert abs(float(brdfjax.projected_brdf(p, 0.4, HALF_PI, 1.0, model="rpv"))) < 1e-12
+
+
+# ---- the exact linear solve of the genetic search
+
+@functools.cache
+def linear_solve():
+    return jax.jit(solve_linear)
+
+
+@pytest.mark.parametrize("name", NAMES)
+@settings(max_examples=25, deadline=None)
+@given(z=st.lists(st.floats(0.0, 1.0), min_size=5, max_size=5))
+def test_linear_solve_matches_bounded_least_squares(white_paint, name, z):
+    """E of the exact solve is at most SciPy's bounded linear least squares on the same
+    columns, and equals E recomputed from the parameters it returns."""
+    model = get(name)
+    bounds = default_bounds(model)
+    prob = problem(white_paint.at_incidences([10, 30]), model)
+    params = np.asarray(from_unit(np.array(z[:model.size]), bounds))
+    solved, e = linear_solve()(params, prob, bounds)
+    columns, units = model.columns(jnp.asarray(params), prob.scene)
+    cos_r = np.asarray(prob.scene.cos_theta_r)
+    root = np.sqrt(np.asarray(prob.weight))
+    matrix = np.stack([np.asarray(c) * u * cos_r for c, u in zip(columns, units)], 1)
+    scale = np.maximum(np.max(np.abs(matrix), axis=0), 1e-300)
+    low, high = (np.asarray(b, dtype=float) for b in model.coefficient_bounds(bounds))
+    reference = lsq_linear(root[:, None] * matrix / scale, root * np.asarray(prob.target),
+                           bounds=(low * scale, high * scale), method="bvls", tol=1e-14)
+    e_scipy = float(np.sum(reference.fun**2))
+    e_direct = float(np.sum(np.asarray(prob.weight) * (
+        np.asarray(projected(np.asarray(solved), prob.scene, model)) - prob.target) ** 2))
+    margin = 1e-12 * np.abs(bounds.upper - bounds.lower)
+    assert np.all((np.asarray(solved) >= bounds.lower - margin)
+                  & (np.asarray(solved) <= bounds.upper + margin))
+    if name not in ("ggx", "beckmann", "rpv"):  # their coefficient box is wider than ks's
+        assert float(e) == pytest.approx(e_direct, rel=1e-9, abs=1e-14)
+    assert float(e) <= e_scipy * (1 + 1e-9) + 1e-14
+
+
+# ---- reflectance, Eq. (9)
+
+@pytest.mark.parametrize(("name", "params"), CASES, ids=IDS)
+def test_reflectance_converged_to_1e4(name, params):
+    """Doubling both node counts changes nothing at the 1e-4 level, at any incidence."""
+    theta = np.radians([0.0, 30.0, 60.0, 85.0])
+    default = np.asarray(reflectance(params, theta, model=name))
+    doubled = np.asarray(reflectance(params, theta, model=name, radial_nodes=320,
+                                     azimuth_nodes=192))
+    np.testing.assert_allclose(default, doubled, rtol=1e-4, atol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["ggx", "beckmann"])
+def test_narrow_lobes_converge(name):
+    """alpha = 0.01: a lobe about half a degree wide, still converged to 1e-4."""
+    params = (1.0, 0.01, 0.04, 0.01)
+    theta = np.radians([0.0, 30.0, 60.0])
+    default = np.asarray(reflectance(params, theta, model=name))
+    doubled = np.asarray(reflectance(params, theta, model=name, radial_nodes=320,
+                                     azimuth_nodes=192))
+    np.testing.assert_allclose(default, doubled, rtol=1e-4)
+
+
+def test_lambert_reflectance_is_pi_kd_exactly():
+    rho = np.asarray(reflectance((0.2,), np.radians([0.0, 45.0, 89.0]), model="lambert"))
+    np.testing.assert_allclose(rho, np.pi * 0.2, rtol=1e-14)
+
+
+@pytest.mark.parametrize(("name", "params", "incidence"), [
+    ("ggx", EXAMPLES["ggx"][0], 30.0), ("beckmann", EXAMPLES["beckmann"][0], 45.0),
+    ("rpv", EXAMPLES["rpv"][0], 30.0), ("torrance-sparrow", EXAMPLES["torrance-sparrow"][1], 20.0),
+    ("five", EXAMPLES["five"][2], 40.0)])
+def test_reflectance_equals_an_independent_integration(name, params, incidence):
+    """scipy's adaptive dblquad of the transcription agrees with the quadrature to 1e-5."""
+    ti = np.radians(incidence)
+
+    def integrand(tr, pr):
+        return float(transcription.MODELS[name](*params, ti, tr, pr)) * np.cos(tr) * np.sin(tr)
+
+    half, _ = dblquad(integrand, 0.0, np.pi, 0.0, HALF_PI - 1e-9, epsabs=1e-10, epsrel=1e-8)
+    assert float(reflectance(params, ti, model=name)) == pytest.approx(2 * half, rel=1e-5)
+
+
+# ---- fitting recovers each model
+
+def synthetic(name, params):
+    """Noise-free in-plane data of a model at 10/30/45/60 deg, every 2 deg."""
+    ti, tr, side = np.meshgrid(np.radians([10.0, 30.0, 45.0, 60.0]),
+                               np.radians(np.arange(1.0, 86.0, 2.0)), [0.0, np.pi])
+    values = np.asarray(brdf(np.array(params), ti.ravel(), tr.ravel(), side.ravel(), model=name))
+    return Measurements(ti.ravel(), tr.ravel(), side.ravel(), values,
+                        metadata={"sample": f"synthetic {name}"})
+
+
+RECOVERED = {"torrance-sparrow": EXAMPLES["torrance-sparrow"][1], "ggx": EXAMPLES["ggx"][1],
+             "beckmann": EXAMPLES["beckmann"][1], "lambert": EXAMPLES["lambert"][0],
+             "rpv": EXAMPLES["rpv"][0]}
+
+
+@pytest.mark.parametrize("name", list(RECOVERED))
+def test_fit_recovers_noise_free_parameters(name):
+    truth = np.array(RECOVERED[name])
+    result = brdfjax.fit(synthetic(name, truth), model=name)
+    assert result.model.name == name and result.params._fields == get(name).names
+    assert result.error < 1e-16
+    np.testing.assert_allclose(result.vector, truth, rtol=1e-6)
