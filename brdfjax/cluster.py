@@ -43,7 +43,7 @@ def fit_chunk(samples: list, options: dict) -> list[dict]:
 
     options = dict(options)
     uncertainty = options.pop("uncertainty", None)
-    bounds = make_bounds(options.pop("ranges", {}))
+    bounds = make_bounds(options.pop("ranges", {}), model=options.get("model"))
     results = fit_batch(samples, bounds=bounds, **options)
     summaries = [result.to_dict() for result in results]
     if uncertainty == "laplace":
@@ -56,7 +56,6 @@ def _add_laplace(samples, results, summaries, bounds) -> None:
     import warnings
 
     from brdfjax.laplace import laplace_approximation
-    from brdfjax.model import PARAMETER_NAMES
 
     for data, result, summary in zip(samples, results, summaries):
         if result.status == "failed":
@@ -64,7 +63,7 @@ def _add_laplace(samples, results, summaries, bounds) -> None:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # its reasons are kept in the status
             approximation = laplace_approximation(data, result, bounds=bounds)
-        summary["std"] = dict(zip(PARAMETER_NAMES, map(float, approximation.std)))
+        summary["std"] = dict(zip(result.model.names, map(float, approximation.std)))
         summary["uncertainty_status"] = approximation.status
 
 

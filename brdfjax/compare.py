@@ -108,22 +108,28 @@ def _timed(run, repeats):
 
 
 def compare(data, seed: int = 0, repeats: int = 3, lm_starts: int = 32,
-            include=("hybrid", "ga", "lm", "scipy", "pygad")) -> list[MethodRun]:
-    """Fit ``data`` with each method; return one `MethodRun` per method."""
+            include=("hybrid", "ga", "lm", "scipy", "pygad"), model="five") -> list[MethodRun]:
+    """Fit ``data`` with each method; return one `MethodRun` per method.
+
+    brdfjax's methods fit ``model``; the SciPy and pygad rows fit the five-parameter model.
+    """
+    from functools import partial
+
+    fit_model = partial(fit, model=model)
     runs = []
     if "hybrid" in include:
-        result, seconds = _timed(lambda: fit(data, seed=seed), repeats)
+        result, seconds = _timed(lambda: fit_model(data, seed=seed), repeats)
         runs.append(MethodRun("brdfjax hybrid", result.error, seconds, result.evaluations,
                               f"status {result.status}"))
     if "ga" in include:
-        result, seconds = _timed(lambda: fit(data, "ga", seed=seed), repeats)
+        result, seconds = _timed(lambda: fit_model(data, "ga", seed=seed), repeats)
         runs.append(MethodRun("brdfjax ga", result.error, seconds, result.evaluations))
     if "lm" in include:
         best = min(r.error for r in runs) if runs else None
-        result, seconds = _timed(lambda: fit(data, "lm", seed=seed, starts=lm_starts), repeats)
+        result, seconds = _timed(lambda: fit_model(data, "lm", seed=seed, starts=lm_starts), repeats)
         note = f"{lm_starts} random starts"
         if best is not None:
-            single = [fit(data, "lm", seed=seed + k, starts=1).error for k in range(lm_starts)]
+            single = [fit_model(data, "lm", seed=seed + k, starts=1).error for k in range(lm_starts)]
             hits = sum(e <= best * (1 + 1e-6) for e in single)
             note += f"; one start reaches the hybrid's E in {hits}/{lm_starts}"
         runs.append(MethodRun("brdfjax lm", result.error, seconds, result.evaluations, note))

@@ -34,17 +34,19 @@ def curve_angles(incidence_deg: float, count: int = 361):
     return (theta_i, np.radians(np.abs(signed)), np.where(signed > 0, np.pi, 0.0)), signed
 
 
-def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: bool = False):
+def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: bool = False,
+             model=None):
     """Data points and fitted curves of f_r cos(theta_r), one colour per incidence.
 
     Args:
         data: the measurements (every incidence is drawn).
-        params: fitted parameters (5,).
+        params: fitted parameters of ``model`` (kb, kr, a, b, kd by default).
         path: output image file (PNG, PDF or SVG by suffix).
         title: figure title.
         held_out: incidences (deg) not used in the fit, drawn hollow and dashed.
         bands: optional ``{incidence: (signed_deg, lo68, hi68, lo95, hi95)}`` to shade.
         log: log-scale the vertical axis (for dark samples with a strong peak).
+        model: a model name or `brdfjax.models.Model` (the five-parameter model if None).
     """
     from brdfjax.model import projected_brdf
 
@@ -59,8 +61,8 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
                 "o", ms=3, mfc="none" if is_held else colour, mec=colour,
                 label=f"{incidence:g} deg data" + (" (held out)" if is_held else ""))
         angles, signed = curve_angles(incidence)
-        model = np.asarray(projected_brdf(np.asarray(params, float), *angles))
-        ax.plot(signed, model, "--" if is_held else "-", color=colour, lw=1.5)
+        curve = np.asarray(projected_brdf(np.asarray(params, float), *angles, model=model))
+        ax.plot(signed, curve, "--" if is_held else "-", color=colour, lw=1.5)
         if bands and incidence in bands:
             x, lo68, hi68, lo95, hi95 = bands[incidence]
             ax.fill_between(x, lo95, hi95, color=colour, alpha=0.15, lw=0)
@@ -77,7 +79,8 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
     plt.close(fig)
 
 
-def plot_hemisphere(params, incidences_deg, path, title: str = "", resolution: int = 121):
+def plot_hemisphere(params, incidences_deg, path, title: str = "", resolution: int = 121,
+                    model=None):
     """3-D surfaces of the model's f_r cos(theta_r) over the hemisphere, one per incidence.
 
     The horizontal coordinates are ``sin(tr) cos(pr)``, ``sin(tr) sin(pr)`` (the projected
@@ -92,7 +95,7 @@ def plot_hemisphere(params, incidences_deg, path, title: str = "", resolution: i
                                  np.radians(np.linspace(0, 360, 2 * resolution)))
     for k, incidence in enumerate(incidences_deg):
         values = np.asarray(projected_brdf(np.asarray(params, float), np.radians(incidence),
-                                           theta_r, phi_r))
+                                           theta_r, phi_r, model=model))
         ax = fig.add_subplot(1, count, k + 1, projection="3d")
         ax.plot_surface(np.sin(theta_r) * np.cos(phi_r), np.sin(theta_r) * np.sin(phi_r),
                         values, cmap="viridis", linewidth=0, rcount=80, ccount=80)

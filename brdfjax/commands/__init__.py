@@ -7,21 +7,38 @@ import argparse
 import numpy as np
 
 
-def parameters(text: str) -> np.ndarray:
-    """``kb,kr,a,b,kd`` or the name of a paper sample (``white_paint``, ...)."""
-    from brdfjax.model import PAPER_SAMPLES
+def parameters(text: str, model: str = "five") -> np.ndarray:
+    """Comma-separated parameters of ``model`` in its order, or a paper sample's name.
 
+    The paper's samples (``white_paint``, ...) are parameters of the five-parameter model.
+    """
+    from brdfjax.model import PAPER_SAMPLES
+    from brdfjax.models import get
+
+    names = get(model).names
     if text in PAPER_SAMPLES:
+        if model != "five":
+            raise ValueError(f"--params {text}: the paper's samples are parameters of the "
+                             f"five model, not of {model}")
         return np.array(PAPER_SAMPLES[text], dtype=float)
     try:
         values = [float(x) for x in text.split(",")]
     except ValueError:
         values = []
-    if len(values) != 5:
-        raise argparse.ArgumentTypeError(
-            f"{text!r}: give five numbers kb,kr,a,b,kd or a paper sample "
-            f"({', '.join(PAPER_SAMPLES)})")
+    if len(values) != len(names):
+        raise ValueError(
+            f"--params {text!r}: give {len(names)} numbers {','.join(names)} for the {model} "
+            f"model" + (f", or a paper sample ({', '.join(PAPER_SAMPLES)})"
+                        if model == "five" else ""))
     return np.array(values)
+
+
+def add_model_option(parser, help_text: str = "the model") -> None:
+    """``--model NAME`` (the five-parameter model by default; names checked when used, so
+    that ``--help`` needs no JAX)."""
+    parser.add_argument("--model", default="five", metavar="NAME",
+                        help=f"{help_text}: five (default), torrance-sparrow, ggx, beckmann, "
+                             "lambert, rpv")
 
 
 def angles(text: str) -> np.ndarray:

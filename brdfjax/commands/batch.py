@@ -1,7 +1,7 @@
 """The ``batch`` command: refit a whole catalogue, resumably, here or on a Dask cluster.
 
-Results go to one CSV row per input file (``file, kb, kr, a, b, kd, error, status,
-message``; E as a fraction). After every chunk the whole CSV is rewritten through a
+Results go to one CSV row per input file (``file``, one column per parameter of the model,
+``error, status, message, model``; E as a fraction). After every chunk the whole CSV is rewritten through a
 temporary file and moved into place, so it always holds every finished sample and never a
 half-written row. Rerunning the same command skips the files already in it: an
 interrupted batch (Ctrl-C, a crash, a killed job) resumes where it stopped, and the final
@@ -21,13 +21,11 @@ from pathlib import Path
 from brdfjax.commands import add_reader_options, reader_options
 
 SUFFIXES = (".csv", ".xls", ".bsdf")
-PARAMETERS = ("kb", "kr", "a", "b", "kd")  # brdfjax.model.PARAMETER_NAMES, without JAX
-COLUMNS = ("file", *PARAMETERS, "error", "status", "message")
-UNCERTAINTY_COLUMNS = (*(f"std_{name}" for name in PARAMETERS), "uncertainty_status")
 SEARCH_OPTIONS = {"population_size": "genetic-search population",
                   "max_generations": "genetic-search generations",
                   "starts": "GA members Levenberg-Marquardt starts from, per sample "
-                            "(plus one Fresnel-free start)",
+                            "(plus the model's own: the five-parameter model's Fresnel-free "
+                            "start)",
                   "max_steps": "Levenberg-Marquardt step cap per start"}
 
 
@@ -51,6 +49,9 @@ def register(subparsers) -> None:
     p.add_argument("--uncertainty", choices=("laplace",),
                    help="add Laplace standard deviations (std_kb, ...) to every row")
     p.add_argument("--seed", type=int, default=0, help="the seed of every fit (default 0)")
+    p.add_argument("--model", default="five", metavar="NAME",
+                   help="the model to fit: five (default), torrance-sparrow, ggx, beckmann, "
+                        "lambert, rpv")
     p.add_argument("--bound", action="append", default=[], metavar="NAME=LO:HI",
                    help="override a parameter's search range, e.g. b=-80:10")
     for name, text in SEARCH_OPTIONS.items():
@@ -110,14 +111,23 @@ def write_results(path, rows: dict, order, columns) -> None:
     write_atomically(path, text.getvalue())
 
 
-def row(file: str, result: dict, columns) -> dict:
+def columns_of(names, uncertainty: bool) -> tuple:
+    """The CSV columns for a model's parameter ``names``, with or without uncertainty."""
+    columns = ("file", *names, "error", "status", "message", "model")
+    if uncertainty:
+        columns += (*(f"std_{name}" for name in names), "uncertainty_status")
+    return columns
+
+
+def row(file: str, result: dict, columns, model: str) -> dict:
     """A CSV row from a `brdfjax.fitting.FitResult.to_dict` (numbers as exact reprs)."""
     values = {"file": file, **{k: repr(float(v)) for k, v in result["params"].items()},
               "error": repr(float(result["error"])), "status": result["status"],
-              "message": result["message"]}
+              "message": result["message"], "model": model}
     if "uncertainty_status" in columns:
         std = result.get("std", {})
-        values.update({f"std_{k}": repr(float(std.get(k, float("nan")))) for k in PARAMETERS})
+        values.update({f"std_{k}": repr(float(std.get(k, float("nan"))))
+                       for k in result["params"]})
         values["uncertainty_status"] = result.get("uncertainty_status", "")
     return values
 
@@ -126,10 +136,12 @@ def run_batch(args) -> int:
     from tqdm import tqdm
 
     from brdfjax.commands.fitting import parse_bounds
+    from brdfjax.models import get
 
     if args.chunk_size < 1:
         raise ValueError(f"--chunk-size {args.chunk_size}: give at least 1")
-    columns = COLUMNS + (UNCERTAINTY_COLUMNS if args.uncertainty else ())
+    model = get(args.model)
+    columns = columns_of(model.names, bool(args.uncertainty))
     files = expand(args.inputs)
     names = [Path(f).stem for f in files]
     if args.json and len(set(names)) < len(names):
@@ -137,7 +149,7 @@ def run_batch(args) -> int:
         raise ValueError(f"--json: two inputs are named {clash!r}; give them separate runs")
     rows = read_results(args.out, columns)
     pending = [f for f in files if f not in rows]
-    options = {"seed": args.seed, "ranges": parse_bounds(args.bound),
+    options = {"seed": args.seed, "ranges": parse_bounds(args.bound), "model": model.name,
                "chunk_size": args.chunk_size, "uncertainty": args.uncertainty,
                **{k: getattr(args, k) for k in SEARCH_OPTIONS if getattr(args, k) is not None}}
     if args.json:
@@ -158,18 +170,19 @@ def run_batch(args) -> int:
         unread.clear()
         if args.json:
             _write_json(args.json, batch)
-        rows.update({file: row(file, result, columns) for file, result in batch.items()})
+        rows.update({file: row(file, result, columns, model.name)
+                     for file, result in batch.items()})
         write_results(args.out, rows, files, columns)
         progress.update(len(batch))
 
-    chunks = _chunks(pending, args, unread)
+    chunks = _chunks(pending, args, unread, model.names)
     lost = _fit_chunks(chunks, args.scheduler, options, record)
     record({})  # the last unreadable files, if no chunk came after them
     progress.close()
     return _summary(rows, files, lost)
 
 
-def _chunks(pending, args, unread: dict):
+def _chunks(pending, args, unread: dict, names):
     """Read the pending files; yield ``(files, measurements)`` chunks of readable ones.
 
     A file that cannot be read goes into ``unread`` as a failed result with the reason.
@@ -182,7 +195,7 @@ def _chunks(pending, args, unread: dict):
         try:
             chunk.append((file, load(file, **reader_options(args))))
         except (DataError, ValueError, OSError) as error:
-            unread[file] = {"params": dict.fromkeys(PARAMETERS, float("nan")),
+            unread[file] = {"params": dict.fromkeys(names, float("nan")),
                             "error": float("nan"), "status": "failed", "message": str(error)}
         if len(chunk) == args.chunk_size:
             yield chunk

@@ -4,15 +4,23 @@ from __future__ import annotations
 
 import numpy as np
 
-from brdfjax.commands import add_reader_options, angles, parameters, reader_options
+from brdfjax.commands import (
+    add_model_option,
+    add_reader_options,
+    angles,
+    parameters,
+    reader_options,
+)
 
 
 def register(subparsers) -> None:
     p = subparsers.add_parser("eval", help="model BRDF at given angles",
                               description="Print f_r (and f_r cos theta_r) as CSV for every "
                                           "combination of the given angles (degrees).")
-    p.add_argument("--params", type=parameters, required=True,
-                   help="kb,kr,a,b,kd or a paper sample name")
+    p.add_argument("--params", required=True,
+                   help="the model's parameters in order (kb,kr,a,b,kd for five) or a paper "
+                        "sample name")
+    add_model_option(p)
     p.add_argument("--theta-i", type=angles, required=True, help="incidence angles (deg)")
     p.add_argument("--theta-r", type=angles, required=True, help="reflection zenith (deg)")
     p.add_argument("--phi-r", type=angles, default=np.array([180.0]),
@@ -22,8 +30,10 @@ def register(subparsers) -> None:
     p = subparsers.add_parser("reflectance", help="directional-hemispherical reflectance",
                               description="Eq. (9): rho(theta_i), the fraction of light "
                                           "reflected into the whole hemisphere.")
-    p.add_argument("--params", type=parameters, required=True,
-                   help="kb,kr,a,b,kd or a paper sample name")
+    p.add_argument("--params", required=True,
+                   help="the model's parameters in order (kb,kr,a,b,kd for five) or a paper "
+                        "sample name")
+    add_model_option(p)
     p.add_argument("--theta-i", type=angles, default=np.array([0.0, 30.0, 60.0]),
                    help="incidence angles (deg; default 0,30,60)")
     p.set_defaults(run=run_reflectance)
@@ -46,7 +56,8 @@ def run_eval(args) -> None:
     from brdfjax.model import brdf
 
     ti, tr, pr = np.meshgrid(args.theta_i, args.theta_r, args.phi_r, indexing="ij")
-    values = np.asarray(brdf(args.params, *np.radians([ti, tr, pr])))
+    params = parameters(args.params, args.model)
+    values = np.asarray(brdf(params, *np.radians([ti, tr, pr]), model=args.model))
     print("theta_i,theta_r,phi_r,brdf,projected")
     for row in zip(ti.ravel(), tr.ravel(), pr.ravel(), values.ravel()):
         print(f"{row[0]:g},{row[1]:g},{row[2]:g},{row[3]:.10g},"
@@ -56,7 +67,8 @@ def run_eval(args) -> None:
 def run_reflectance(args) -> None:
     from brdfjax.hemispherical import energy_warning, reflectance
 
-    rho = np.asarray(reflectance(args.params, np.radians(args.theta_i)))
+    rho = np.asarray(reflectance(parameters(args.params, args.model), np.radians(args.theta_i),
+                                 model=args.model))
     print("theta_i,reflectance")
     for t, r in zip(args.theta_i, rho):
         print(f"{t:g},{r:.6f}")

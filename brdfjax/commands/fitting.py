@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from brdfjax.commands import add_reader_options, angles, reader_options
+from brdfjax.commands import add_model_option, add_reader_options, angles, reader_options
 
 DATA = Path(__file__).resolve().parents[2] / "data"
 UNCERTAINTY_METHODS = ("none", "laplace", "mcmc")
@@ -18,9 +18,12 @@ SUMMARY_INCIDENCES = (0.0, 30.0, 60.0)
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("fit", help="fit the model to a measurement file",
-                              description="Fit kb, kr, a, b, kd by minimising E of Eq. (6).")
+    p = subparsers.add_parser("fit", help="fit a model to a measurement file",
+                              description="Fit a model's parameters (kb, kr, a, b, kd of the "
+                                          "paper's model by default) by minimising E of "
+                                          "Eq. (6).")
     p.add_argument("file")
+    add_model_option(p, "the model to fit")
     p.add_argument("--method", choices=("hybrid", "ga", "lm"), default="hybrid",
                    help="hybrid: genetic search then Levenberg-Marquardt (default)")
     p.add_argument("--seed", type=int, default=0)
@@ -66,6 +69,7 @@ def register(subparsers) -> None:
                               description="Run time against error of each fitting method "
                                           "on the same data, in one process.")
     p.add_argument("file")
+    add_model_option(p, "the model to fit")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--repeats", type=int, default=3, help="timed runs per method")
     add_reader_options(p)
@@ -112,8 +116,9 @@ def run_fit(args) -> None:
     if args.plot_corner and args.uncertainty == "none":
         raise ValueError("--plot-corner needs --uncertainty laplace or mcmc")
     data = load(args.file, **reader_options(args))
-    result = fit(data, args.method, seed=args.seed, validate_incidences=held_out(data, args),
-                 bounds=make_bounds(parse_bounds(args.bound)))
+    result = fit(data, args.method, model=args.model, seed=args.seed,
+                 validate_incidences=held_out(data, args),
+                 bounds=make_bounds(parse_bounds(args.bound), model=args.model))
     print(summary(result, data.name))
     uncertainty = estimate_uncertainty(result, data, args)
     if uncertainty is not None:
@@ -178,7 +183,7 @@ def write_outputs(result, data, args, uncertainty=None) -> None:
         # With bands, the curves are the posterior's (its medians), which the bands surround;
         # without, the fit's.
         replace_atomically(args.plot, lambda path: plot_fit(
-            data, result.vector if bands is None else uncertainty.median, path,
+            data, result.vector if bands is None else uncertainty.median, path, model=result.model,
             held_out=result.validation_incidences, log=args.log, bands=bands,
             title=f"{data.name}: E = {100 * result.error:.3g} %" if bands is None else
             f"{data.name}: {uncertainty.method} posterior medians, 68/95 % bands"))
@@ -188,7 +193,8 @@ def write_outputs(result, data, args, uncertainty=None) -> None:
         incidences = (args.incidences_3d if args.incidences_3d is not None
                       else data.incidences_deg[:3])
         replace_atomically(args.plot_3d, lambda path: plot_hemisphere(
-            result.vector, incidences, path, title=f"{data.name}: fitted model"))
+            result.vector, incidences, path, title=f"{data.name}: fitted {result.model.name} "
+                                                   "model", model=result.model))
     if args.plot_corner:
         from brdfjax.plot import plot_corner
 
@@ -199,12 +205,14 @@ def write_outputs(result, data, args, uncertainty=None) -> None:
 def summary(result, name: str) -> str:
     """A readable table of a `brdfjax.fitting.FitResult`, with the reflectance of Eq. (9)."""
     from brdfjax.hemispherical import energy_warning, reflectance
-    from brdfjax.model import PARAMETER_NAMES
 
-    lines = [f"{name}: {result.method} fit, status {result.status}"]
-    lines += [f"  {k:>3} = {v:14.6g}" + ("   (at a bound)" if k in result.at_bounds else "")
-              for k, v in zip(PARAMETER_NAMES, result.params)]
-    lines.append(f"  E   = {100 * result.error:.4g} % on {len(result.residuals)} points "
+    names = result.model.names
+    width = max(3, *map(len, names))
+    lines = [f"{name}: {result.method} fit of the {result.model.name} model, status "
+             + result.status]
+    lines += [f"  {k:>{width}} = {v:14.6g}" + ("   (at a bound)" if k in result.at_bounds
+                                               else "") for k, v in zip(names, result.params)]
+    lines.append(f"  {'E':<{width}} = {100 * result.error:.4g} % on {len(result.residuals)} points "
                  f"(incidences {', '.join(f'{x:g}' for x in result.train_incidences)} deg)")
     for deg, e in result.error_by_incidence.items():
         lines.append(f"        {deg:6g} deg: E = {100 * e:.4g} %")
@@ -275,4 +283,4 @@ def run_compare(args) -> None:
     from brdfjax.formats import load
 
     data = load(args.file, **reader_options(args))
-    print(format_table(compare(data, seed=args.seed, repeats=args.repeats)))
+    print(format_table(compare(data, seed=args.seed, repeats=args.repeats, model=args.model)))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from brdfjax.commands import angles, parameters
+from brdfjax.commands import add_model_option, angles, parameters
 
 PLAN_OPTIONS = ("theta_r_step", "theta_r_max", "azimuth", "average", "integration_ms",
                 "beam_margin")
@@ -26,6 +26,7 @@ def register(subparsers) -> None:
     p.add_argument("--out", required=True, metavar="FILE", help="the measurement file (.csv)")
     p.add_argument("--journal", metavar="FILE",
                    help="the journal (default: FILE with the suffix .journal.jsonl)")
+    add_model_option(p, "the model of --params")
     p.add_argument("--reference-reflectance", type=float, default=0.99, metavar="RHO",
                    help="hemispherical reflectance of the PTFE reference plate at the "
                         "wavelength (default 0.99)")
@@ -57,8 +58,9 @@ def register(subparsers) -> None:
                     "voltages from a BRDF and a PTFE reference plate. Prints the device path "
                     "as its first line of output, then serves until killed.")
     sample = p.add_mutually_exclusive_group(required=True)
-    sample.add_argument("--params", type=parameters,
-                        help="kb,kr,a,b,kd (or a paper sample name) of the model sample")
+    sample.add_argument("--params",
+                        help="the parameters of a model sample (kb,kr,a,b,kd for five, or a "
+                             "paper sample name; see --model)")
     sample.add_argument("--data", metavar="FILE",
                         help="interpolate this in-plane measurement file instead")
     p.add_argument("--reference-reflectance", type=float, default=0.99, metavar="RHO",
@@ -128,7 +130,7 @@ def run_simulate(args) -> None:
         from brdfjax.cache import enable
 
         enable()
-        sample = ModelSample(args.params)
+        sample = ModelSample(parameters(args.params, args.model), args.model)
     else:
         from brdfjax.formats import load
 

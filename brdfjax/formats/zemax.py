@@ -391,7 +391,7 @@ def write(data: Measurements, path) -> None:
 
 def write_model(path, params, incidences_deg, azimuths_deg=tuple(range(0, 181, 10)),
                 radial_deg=tuple(range(0, 91, 5)), sample: str = "brdfjax model",
-                wavelength_nm: float | None = None) -> None:
+                wavelength_nm: float | None = None, model=None) -> None:
     """Export the fitted model as a Zemax tabular BSDF file.
 
     Evaluates `brdfjax.model.brdf` at every (incidence, azimuth, radial) grid point above
@@ -400,29 +400,32 @@ def write_model(path, params, incidences_deg, azimuths_deg=tuple(range(0, 181, 1
 
     Args:
         path: the ``.bsdf`` file to write.
-        params: the model parameters (a `~brdfjax.model.Params` or kb, kr, a, b, kd).
+        params: the model's parameters (for the default model a `~brdfjax.model.Params` or
+            kb, kr, a, b, kd).
         incidences_deg: the angles of incidence.
         azimuths_deg: Zemax scatter azimuths (0 points from the specular ray toward the
             normal).
         radial_deg: Zemax radial angles from the specular ray.
         sample: the name written in a ``# Sample:`` comment.
         wavelength_nm: recorded in a comment when given.
+        model: a model name or `brdfjax.models.Model` (the five-parameter model if None).
     """
     from brdfjax.model import as_vector, brdf  # JAX only for the export
+    from brdfjax.models import get
 
+    model = get(model)
     incidences, azimuths, radials = (np.sort(np.asarray(x, dtype=float).reshape(-1))
                                      for x in (incidences_deg, azimuths_deg, radial_deg))
     aoi, azimuth, radial = np.meshgrid(incidences, azimuths, radials, indexing="ij")
     theta_r, phi_r = zemax_to_angles(aoi, azimuth, radial)
     above = theta_r < HORIZON_DEG - 1e-9
     values = np.asarray(brdf(params, np.radians(aoi), np.radians(np.minimum(theta_r, 90.0)),
-                             np.radians(phi_r)), dtype=float)
+                             np.radians(phi_r), model=model), dtype=float)
     table = np.where(above, values, 0.0)
-    names = ("kb", "kr", "a", "b", "kd")
     vector = np.asarray(as_vector(params), dtype=float)
     comments = [f"Sample: {sample}",
-                "BRDF model of Zhang, Wu, Cao and Zhang, Eq. (5), exported by brdfjax",
-                "parameters: " + ", ".join(f"{n}={v:.8g}" for n, v in zip(names, vector))]
+                f"BRDF model {model.name} ({model.summary.split(':')[0]}), exported by brdfjax",
+                "parameters: " + ", ".join(f"{n}={v:.8g}" for n, v in zip(model.names, vector))]
     if wavelength_nm is not None:
         comments.append(f"wavelength_nm: {wavelength_nm:g}")
     _write_table(path, "Model", incidences, azimuths, radials, table, comments)

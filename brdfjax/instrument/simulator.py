@@ -66,15 +66,18 @@ class NoData(ValueError):
 
 
 class ModelSample:
-    """A sample whose BRDF is the five-parameter model of Eq. (5) with fixed parameters."""
+    """A sample whose BRDF is a model (the five-parameter model of Eq. 5 by default) with
+    fixed parameters."""
 
-    def __init__(self, params):
+    def __init__(self, params, model: str = "five"):
+        import functools
+
         import jax
 
         from brdfjax.model import brdf
 
         self.params = np.asarray(params, dtype=float)
-        self._brdf = jax.jit(brdf)
+        self._brdf = jax.jit(functools.partial(brdf, model=model))
         self.brdf(10.0, 10.0, 0.0)  # compile now, not in the middle of the first READ
 
     def brdf(self, theta_i: float, theta_r: float, phi_r: float) -> float:
