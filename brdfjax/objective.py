@@ -22,7 +22,7 @@ import numpy as np
 from brdfjax.bounds import Bounds
 from brdfjax.cache import stage
 from brdfjax.measurements import Measurements
-from brdfjax.model import FIVE, evaluate_projected
+from brdfjax.model import FIVE, evaluate, evaluate_projected
 from brdfjax.models import Model
 
 
@@ -90,6 +90,18 @@ _projected_stage = stage(_projected)
 def projected(params, geometry, model: Model = FIVE) -> jax.Array:
     """`brdfjax.model.evaluate_projected` as one compiled stage (host calls)."""
     return _projected_stage(params, geometry, model)
+
+
+def _brdf(params, geometry, model):
+    return evaluate(params, geometry, model)
+
+
+_brdf_stage = stage(_brdf)
+
+
+def brdf_values(params, geometry, model: Model = FIVE) -> jax.Array:
+    """`brdfjax.model.evaluate` (f_r, 1/sr) as one compiled stage (host calls)."""
+    return _brdf_stage(params, geometry, model)
 
 
 def targets(data: Measurements) -> tuple[np.ndarray, np.ndarray]:

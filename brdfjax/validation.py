@@ -1,0 +1,183 @@
+"""Cross-validation by incidence: how well a fit predicts an incidence it never saw.
+
+Users fit a BRDF model to predict the geometry they did not measure, so the honest score
+of a model is its error there. `cross_validate` holds out each incidence in turn, fits on
+all the others, and scores the held-out incidence alone with E of Eq. (6):
+
+- folds holding out an *interior* incidence (neither the smallest nor the largest)
+  measure interpolation; their mean held-out E is ``cv_error``, the score models are
+  ranked by (`brdfjax.selection`);
+- folds holding out the smallest or the largest incidence measure extrapolation and are
+  reported separately.
+
+All folds are samples of one `brdfjax.batch.fit_batch` call, not a loop of fits.
+
+Scattered geometry, where incidences hardly repeat (NIST's random-direction PTFE set has
+1760 points at 1760 incidences), is grouped into `SCATTERED_BINS` bins of equal point
+count along the incidence angle, whose edges are rounded to whole degrees; each bin is a
+fold. Data are taken as scattered when they have more distinct incidences than
+`MAX_FOLDS`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from brdfjax.measurements import DataError, Measurements
+
+# More distinct incidences than this and the data count as scattered (see the docstring).
+MAX_FOLDS = 24
+SCATTERED_BINS = 8
+
+
+@dataclass
+class Fold:
+    """One held-out group of points.
+
+    Attributes:
+        label: the held-out incidence (``"30"``) or bin (``"20-35"``), degrees.
+        low, high: the incidence range held out, degrees.
+        interior: True unless it holds out the smallest or the largest incidences.
+        train_error, held_error: E of Eq. (6) on the training and held-out points.
+        params: the fold's fitted parameters.
+        status: the fold fit's status.
+        predicted: the fold model's BRDF at the held-out points (for calibration).
+        index: positions of the held-out points in the data.
+    """
+
+    label: str
+    low: float
+    high: float
+    interior: bool
+    train_error: float
+    held_error: float
+    params: np.ndarray
+    status: str
+    predicted: np.ndarray = field(repr=False)
+    index: np.ndarray = field(repr=False)
+
+    @property
+    def ratio(self) -> float:
+        """Held-out E over training E: how much worse the fit does where it did not look."""
+        return self.held_error / self.train_error if self.train_error > 0 else np.inf
+
+    def to_dict(self) -> dict:
+        return {"held_out": self.label, "interior": self.interior,
+                "train_error": self.train_error, "held_error": self.held_error,
+                "ratio": self.ratio, "status": self.status}
+
+
+@dataclass
+class CrossValidation:
+    """The folds of `cross_validate` and their summary.
+
+    Attributes:
+        model: the model's name.
+        folds: every `Fold`, in incidence order.
+        cv_error: mean held-out E over the interior folds (NaN without interior folds).
+        extrapolation_error: mean held-out E over the two end folds.
+    """
+
+    model: str
+    folds: list
+
+    @property
+    def interior(self) -> list:
+        return [f for f in self.folds if f.interior]
+
+    @property
+    def cv_error(self) -> float:
+        inner = self.interior
+        return float(np.mean([f.held_error for f in inner])) if inner else float("nan")
+
+    @property
+    def extrapolation_error(self) -> float:
+        ends = [f for f in self.folds if not f.interior]
+        return float(np.mean([f.held_error for f in ends])) if ends else float("nan")
+
+    @property
+    def by_incidence(self) -> dict:
+        """Held-out E of every fold by its label."""
+        return {f.label: f.held_error for f in self.folds}
+
+    def to_dict(self) -> dict:
+        return {"model": self.model, "cv_error": self.cv_error,
+                "extrapolation_error": self.extrapolation_error,
+                "cv_by_incidence": self.by_incidence,
+                "folds": [f.to_dict() for f in self.folds]}
+
+    def table(self) -> str:
+        """A readable table of the folds."""
+        lines = [f"cross-validation by incidence ({self.model}): cv_error = "
+                 f"{100 * self.cv_error:.4g} % (mean held-out E of the interior folds)",
+                 f"  {'held out (deg)':>15} {'train E (%)':>12} {'held-out E (%)':>15} "
+                 f"{'ratio':>8}"]
+        for f in self.folds:
+            kind = "" if f.interior else "  (extrapolation)"
+            lines.append(f"  {f.label:>15} {100 * f.train_error:12.4g} "
+                         f"{100 * f.held_error:15.4g} {f.ratio:8.3g}{kind}")
+        return "\n".join(lines)
+
+
+def incidence_groups(data: Measurements) -> list[tuple[str, float, float, np.ndarray]]:
+    """The folds' held-out groups: ``(label, low, high, mask)`` in incidence order.
+
+    One group per distinct incidence, or, for scattered geometry (more than `MAX_FOLDS`
+    distinct incidences), `SCATTERED_BINS` bins of about equal point count with edges
+    rounded to whole degrees.
+    """
+    degrees = np.round(np.degrees(data.theta_i), 6)
+    distinct = np.unique(degrees)
+    if distinct.size <= MAX_FOLDS:
+        return [(f"{d:g}", float(d), float(d), degrees == d) for d in distinct]
+    edges = np.unique(np.round(np.quantile(degrees, np.linspace(0, 1, SCATTERED_BINS + 1))))
+    edges[0], edges[-1] = min(edges[0], distinct[0]), max(edges[-1], distinct[-1])
+    groups = []
+    for k, (low, high) in enumerate(zip(edges[:-1], edges[1:])):
+        last = k == len(edges) - 2
+        mask = (degrees >= low) & ((degrees <= high) if last else (degrees < high))
+        if mask.any():
+            groups.append((f"{low:g}-{high:g}", float(low), float(high), mask))
+    return groups
+
+
+def cross_validate(data: Measurements, model=None, *, seed: int = 0, bounds=None,
+                   **options) -> CrossValidation:
+    """Leave-one-incidence-out cross-validation of a model, all folds in one batched fit.
+
+    Args:
+        data: the measurements (at least three incidences or bins, so that one is interior).
+        model: a model name or `brdfjax.models.Model` (the five-parameter model if None).
+        seed: the seed of every fold's fit.
+        bounds: the search box (the model's default if None).
+        **options: fit options of `brdfjax.batch.fit_batch` (``starts``, ...).
+
+    Returns:
+        A `CrossValidation`.
+    """
+    from brdfjax.batch import fit_batch
+    from brdfjax.models import get
+    from brdfjax.objective import brdf_values, prepare, relative_error, targets
+
+    model = get(model)
+    groups = incidence_groups(data)
+    if len(groups) < 3:
+        raise DataError(f"cross-validation needs at least 3 incidences, the data have "
+                        f"{len(groups)}", data.metadata.get("source"),
+                        hint="measure more incidences, or skip --cv")
+    samples = [data.select(~mask) for _, _, _, mask in groups]
+    results = fit_batch(samples, model=model, seed=seed, bounds=bounds, **options)
+    target, weight = targets(data)
+    geometry, cos_r = prepare(data, model), np.cos(data.theta_r)
+    folds = []
+    for k, ((label, low, high, mask), result) in enumerate(zip(groups, results)):
+        values = np.asarray(brdf_values(result.vector, geometry, model))
+        folds.append(Fold(
+            label=label, low=low, high=high, interior=0 < k < len(groups) - 1,
+            train_error=result.error,
+            held_error=relative_error((values * cos_r)[mask], target[mask], weight[mask]),
+            params=result.vector, status=result.status, predicted=values[mask],
+            index=np.flatnonzero(mask)))
+    return CrossValidation(model.name, folds)
