@@ -19,7 +19,6 @@ from pathlib import Path
 
 import numpy as np
 
-from brdfjax.formats.zemax import merge_repeats
 from brdfjax.measurements import DataError, Measurements, validate
 
 # The columns used, with the spellings found in the published files.
@@ -41,7 +40,8 @@ def read(path, wavelength_nm: float | None = None, in_plane_only: bool = False) 
         in_plane_only: keep only the points in the plane of incidence.
 
     Returns:
-        The validated `Measurements` (repeated geometries averaged, see ``metadata``).
+        The validated `Measurements`, one point per row (a repeated geometry is kept
+            as another reading).
 
     Raises:
         DataError: for a malformed file, or a missing or ambiguous wavelength.
@@ -55,12 +55,10 @@ def read(path, wavelength_nm: float | None = None, in_plane_only: bool = False) 
     theta_r, phi_detector = _unsign(table["thetar"], table["phir"])
     phi_r = _relative_azimuth(phi_detector, phi_source, theta_r)
     angles = np.stack([theta_i, theta_r, phi_r], axis=1)
-    angles, brdf, lines, merged = merge_repeats(angles, table["fr11"], lines)
+    brdf = table["fr11"]
     wavelength = float(np.round(np.mean(table["lambda"]) * 1000.0, 3))
     metadata = {"sample": path.name.split(".")[0], "wavelength_nm": wavelength,
                 "source": str(path), "format": "NIST PTFE BRDF table (Germer 2017)"}
-    if merged:
-        metadata["repeats_averaged"] = f"{merged} rows on an already listed geometry averaged"
     if in_plane_only:
         plane = np.abs(np.sin(np.radians(angles[:, 2]))) < 1e-9
         if not plane.any():

@@ -66,7 +66,8 @@ def read(path, blank=None, keep_beam_crossing: bool = False,
     The blank reading at the same (Incidence, Receive) is subtracted and the difference
     divided by ``pi cos(Receive)``. ``Receive > 0`` is the specular side, so a point becomes
     ``theta_r = |Receive|`` with ``phi_r = 180`` deg when ``Receive > 0`` and 0 otherwise.
-    A geometry the instrument measured more than once is averaged (see ``metadata``).
+    A geometry the sample was read at more than once gives one point per reading; the
+    blank's repeats are averaged (it is a correction, subtracted from every reading).
 
     Args:
         path: the sample's ``.xls`` file.
@@ -87,7 +88,7 @@ def read(path, blank=None, keep_beam_crossing: bool = False,
     if blank_path.resolve() == path.resolve():
         raise DataError("the sample and the blank are the same file", path,
                         hint="pass blank= the empty-holder measurement")
-    sample, merged = _average_repeats(in_plane(read_scan(path), path))
+    sample = in_plane(read_scan(path), path)
     reference, merged_blank = _average_repeats(in_plane(read_scan(blank_path), blank_path))
     rt_blank = _blank_readings(sample, reference, path, blank_path)
     crossing = np.abs(sample.receive + sample.incidence) <= BEAM_CROSSING_DEG + 1e-9
@@ -103,9 +104,8 @@ def read(path, blank=None, keep_beam_crossing: bool = False,
                          f"{int(crossing.sum())} points with |Receive + Incidence| <= "
                          f"{BEAM_CROSSING_DEG:g} deg",
     }
-    if merged or merged_blank:
-        metadata["repeats_averaged"] = (f"{merged} repeated sample readings and "
-                                        f"{merged_blank} repeated blank readings averaged")
+    if merged_blank:
+        metadata["blank_repeats_averaged"] = f"{merged_blank} repeated blank readings"
     receive = sample.receive[keep]
     data = Measurements.from_degrees(
         sample.incidence[keep], np.abs(receive), np.where(receive > 0, 180.0, 0.0),

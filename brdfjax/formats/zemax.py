@@ -42,7 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
-from brdfjax.measurements import DataError, Measurements, validate
+from brdfjax.measurements import DataError, Measurements, geometry_keys, validate
 
 SYMMETRIES = ("PlaneSymmetrical", "Asymmetrical")
 HORIZON_DEG = 90.0
@@ -242,7 +242,9 @@ def read(path, incidence=None, wavelength_nm: float | None = None,
     Every table entry becomes a point ``(theta_i, theta_r, phi_r)`` (see the module
     docstring for the conversion). Directions at or below the horizon are dropped, as are
     entries that are exactly 0 (tables pad missing data with 0) unless ``keep_zeros``.
-    Entries that fall on the same direction (radial 0 at every azimuth) are averaged.
+    The specular direction (radial 0), listed once per azimuth row, is one reading when
+    its entries agree; entries at one direction with different values are all kept, each
+    an independent reading (as the CSV reader keeps repeated rows).
 
     Args:
         path: the ``.bsdf`` file.
@@ -273,14 +275,14 @@ def read(path, incidence=None, wavelength_nm: float | None = None,
     if not keep_zeros:
         keep &= tables != 0
     angles = np.stack([aoi[keep], theta_r[keep], phi_r[keep]], axis=1)
-    angles, brdf, first_lines, merged = merge_repeats(angles, tables[keep], line[keep])
+    angles, brdf, first_lines, copies = _drop_copies(angles, tables[keep], line[keep])
     metadata = _metadata(path, lines.comments, header, wavelength_nm)
     metadata["tis"] = ", ".join(f"{a:g}: {t:g}" for a, t in zip(incidences, tis))
     if not keep_zeros and zeros.any():
         metadata["zeros_dropped"] = int(zeros.sum())
-    if merged:
-        metadata["repeats_averaged"] = (f"{merged} table entries on an already listed "
-                                        "direction (e.g. radial 0 at each azimuth) averaged")
+    if copies:
+        metadata["copies_dropped"] = (f"{copies} table entries repeating the direction and "
+                                      "value of an earlier one (radial 0 in each azimuth row)")
     data = Measurements.from_degrees(*angles.T, brdf, metadata=metadata)
     return validate(data, path, first_lines)
 
@@ -315,10 +317,10 @@ def _metadata(path, comments, header, wavelength_nm) -> dict:
 
 
 def merge_repeats(angles_deg, values, lines=None):
-    """Average the values of points that share a geometry.
+    """Average the values of points that share a geometry (one value per table cell).
 
-    Two points share a geometry when ``(theta_i, theta_r, phi_r mod 360)`` agree to 1e-6
-    deg (the check `~brdfjax.measurements.validate` applies); the normal direction
+    Two points share a geometry when `~brdfjax.measurements.geometry_keys` says so:
+    ``(theta_i, theta_r, phi_r mod 360)`` agree to 1e-6 deg, and the normal direction
     ``theta_r = 0`` is one point whatever its azimuth.
 
     Args:
@@ -332,9 +334,7 @@ def merge_repeats(angles_deg, values, lines=None):
     """
     angles = np.asarray(angles_deg, dtype=float)
     values = np.asarray(values, dtype=float)
-    key = np.round(angles, DECIMALS)
-    key[:, 2] = np.mod(key[:, 2], 360.0)
-    key[key[:, 1] == 0, 2] = 0.0
+    key = geometry_keys(*angles.T)
     _, first, inverse, counts = np.unique(key, axis=0, return_index=True,
                                           return_inverse=True, return_counts=True)
     order = np.argsort(first)
@@ -342,6 +342,20 @@ def merge_repeats(angles_deg, values, lines=None):
     picked = first[order]
     lines = None if lines is None else np.asarray(lines)[picked]
     return angles[picked], means, lines, int(len(values) - len(picked))
+
+
+def _drop_copies(angles_deg, values, lines):
+    """Keep one of the entries that repeat both a direction and its value exactly.
+
+    The format lists the specular direction (radial 0) once per azimuth row: those cells
+    are one direction, and a table that writes the same value in each holds one reading,
+    written several times. Entries at one direction with different values are different
+    readings and are all kept, as the CSV reader keeps repeated rows.
+    """
+    key = np.column_stack([geometry_keys(*np.asarray(angles_deg, dtype=float).T), values])
+    _, first = np.unique(key, axis=0, return_index=True)
+    first = np.sort(first)
+    return angles_deg[first], values[first], lines[first], int(len(values) - len(first))
 
 
 # --- writing ----------------------------------------------------------------------------
@@ -358,9 +372,10 @@ def write(data: Measurements, path) -> None:
     Raises:
         DataError: when a cell above the horizon has no measurement.
     """
-    theta_i = np.round(np.degrees(data.theta_i), DECIMALS)
-    azimuth, radial = angles_to_zemax(theta_i, np.degrees(data.theta_r),
-                                      np.degrees(data.phi_r))
+    angles, brdf, _, merged = merge_repeats(
+        np.degrees(np.stack([data.theta_i, data.theta_r, data.phi_r], axis=1)), data.brdf)
+    theta_i = np.round(angles[:, 0], DECIMALS)
+    azimuth, radial = angles_to_zemax(theta_i, angles[:, 1], angles[:, 2])
     azimuth, radial = np.round(azimuth, DECIMALS), np.round(radial, DECIMALS)
     incidences = np.unique(theta_i)
     azimuths = np.unique(azimuth[radial > 0]) if np.any(radial > 0) else np.array([0.0])
@@ -369,9 +384,9 @@ def write(data: Measurements, path) -> None:
     i = np.searchsorted(incidences, theta_i)
     j = np.searchsorted(radials, radial)
     specular = radial == 0
-    table[i[specular], :, j[specular]] = data.brdf[specular, None]
+    table[i[specular], :, j[specular]] = brdf[specular, None]
     table[i[~specular], np.searchsorted(azimuths, azimuth[~specular]), j[~specular]] = \
-        data.brdf[~specular]
+        brdf[~specular]
     theta_r, _ = zemax_to_angles(*np.meshgrid(incidences, azimuths, radials, indexing="ij"))
     below = theta_r >= HORIZON_DEG - 1e-9
     table[below & np.isnan(table)] = 0.0
@@ -386,6 +401,9 @@ def write(data: Measurements, path) -> None:
     comments = [f"{key}: {value}" for key, value in data.metadata.items()
                 if key in ("sample", "wavelength_nm")]
     comments.insert(0, "Measured BRDF written by brdfjax")
+    if merged:
+        comments.append(f"repeats_averaged: {merged} repeated readings averaged into their "
+                        "table cells")
     _write_table(path, "Measured", incidences, azimuths, radials, table, comments)
 
 
