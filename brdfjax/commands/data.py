@@ -30,7 +30,8 @@ def register(subparsers) -> None:
 
     p = subparsers.add_parser("convert", help="convert between measurement formats",
                               description="Read any supported file and write brdfjax CSV "
-                                          "(.csv) or Zemax tabular BSDF (.bsdf).")
+                                          "(.csv), Zemax tabular BSDF (.bsdf) or ASTM "
+                                          "E1392 (.astm).")
     p.add_argument("input")
     p.add_argument("output")
     add_reader_options(p)

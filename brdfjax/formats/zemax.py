@@ -42,6 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
+from brdfjax.formats import read_text
 from brdfjax.measurements import DataError, Measurements, geometry_keys, validate
 
 SYMMETRIES = ("PlaneSymmetrical", "Asymmetrical")
@@ -256,11 +257,7 @@ def read(path, incidence=None, wavelength_nm: float | None = None,
         The validated `Measurements`; ``metadata["tis"]`` holds the file's TIS values.
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8", errors="replace")
-    except OSError as error:
-        raise DataError(f"cannot read the file ({error.strerror})", path) from None
-    lines = _Lines(path, text)
+    lines = _Lines(path, read_text(path))
     header, where = _read_header(lines)
     _check_header(header, where, path)
     tis, tables, rows = _read_blocks(lines, header)
@@ -426,24 +423,39 @@ def write_model(path, params, incidences_deg, azimuths_deg=tuple(range(0, 181, 1
         sample: the name written in a ``# Sample:`` comment.
         wavelength_nm: recorded in a comment when given.
     """
-    from brdfjax.model import as_vector, brdf  # JAX only for the export
-
     incidences, azimuths, radials = (np.sort(np.asarray(x, dtype=float).reshape(-1))
                                      for x in (incidences_deg, azimuths_deg, radial_deg))
     aoi, azimuth, radial = np.meshgrid(incidences, azimuths, radials, indexing="ij")
     theta_r, phi_r = zemax_to_angles(aoi, azimuth, radial)
     above = theta_r < HORIZON_DEG - 1e-9
-    values = np.asarray(brdf(params, np.radians(aoi), np.radians(np.minimum(theta_r, 90.0)),
-                             np.radians(phi_r)), dtype=float)
+    values = evaluate_model(params, aoi, np.minimum(theta_r, 90.0), phi_r)
     table = np.where(above, values, 0.0)
-    names = ("kb", "kr", "a", "b", "kd")
-    vector = np.asarray(as_vector(params), dtype=float)
     comments = [f"Sample: {sample}",
                 "BRDF model of Zhang, Wu, Cao and Zhang, Eq. (5), exported by brdfjax",
-                "parameters: " + ", ".join(f"{n}={v:.8g}" for n, v in zip(names, vector))]
+                parameter_comment(params)]
     if wavelength_nm is not None:
         comments.append(f"wavelength_nm: {wavelength_nm:g}")
     _write_table(path, "Model", incidences, azimuths, radials, table, comments)
+
+
+def evaluate_model(params, theta_i_deg, theta_r_deg, phi_r_deg) -> np.ndarray:
+    """The model's BRDF (1/sr) at the given angles (degrees, broadcast), for the exports.
+
+    The one place the Zemax and ASTM exports evaluate a fitted model.
+    """
+    from brdfjax.model import brdf  # JAX only for the export
+
+    angles = np.radians(np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in
+                                              (theta_i_deg, theta_r_deg, phi_r_deg))))
+    return np.asarray(brdf(params, *angles), dtype=float)
+
+
+def parameter_comment(params) -> str:
+    """``"parameters: kb=..., kr=..., a=..., b=..., kd=..."`` for an export's header."""
+    from brdfjax.model import PARAMETER_NAMES, as_vector
+
+    vector = np.asarray(as_vector(params), dtype=float)
+    return "parameters: " + ", ".join(f"{n}={v:.8g}" for n, v in zip(PARAMETER_NAMES, vector))
 
 
 def tis(table, incidence_deg, azimuths_deg, radial_deg) -> float:
