@@ -159,3 +159,11 @@ def test_model_export_matches_the_model_and_the_zemax_export(tmp_path):
         match = (np.abs(ours.theta_r - theta) < 1e-9) & (np.cos(ours.phi_r) == phi)
         if match.any():
             assert ours.brdf[match][0] == pytest.approx(value, rel=5.1e-7)
+
+
+def test_angles_in_degrees_are_refused(tmp_path):
+    path = write(tmp_path / "deg.astm", "theta_i,phi_i,theta_s,phi_s,BRDF",
+                 [(0.5, 0.0, 0.2, 3.0, 0.1), (30, 0, 20, 180, 0.1)])
+    with pytest.raises(DataError, match=r"deg.astm:5: theta_i = 30 is not a polar angle in "
+                                        r"radians .*written in degrees"):
+        load(path)

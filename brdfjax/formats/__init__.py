@@ -121,6 +121,15 @@ def read_text(path) -> str:
         return raw.decode("latin-1")
 
 
+def split_lines(text: str) -> list[str]:
+    """The lines of a text as an editor numbers them: split at ``\\n``, ``\\r\\n`` or ``\\r``.
+
+    (`str.splitlines` also splits at form feeds and other separators, which would make the
+    line numbers in messages disagree with the file.)
+    """
+    return text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
+
+
 def _reader(path):
     """The reader module for a file: by suffix, and for text files by content."""
     from brdfjax.formats import astm, csv, nist, rt300s, zemax

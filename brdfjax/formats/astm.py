@@ -48,7 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
-from brdfjax.formats import read_text, spectral
+from brdfjax.formats import read_text, spectral, split_lines
 from brdfjax.formats.directions import relative_azimuth, unsign
 from brdfjax.measurements import DataError, Measurements, validate
 
@@ -166,7 +166,7 @@ class _Table:
 def _read_table(path) -> _Table:
     header, header_lines, columns, vars_line = {}, {}, None, None
     rows, lines = [], []
-    for number, raw in enumerate(read_text(path).splitlines(), start=1):
+    for number, raw in enumerate(split_lines(read_text(path)), start=1):
         text = raw.strip()
         if not text or text.startswith("#"):
             continue
@@ -240,10 +240,17 @@ def _pick_output(table: _Table, wavelength_nm) -> int:
 
 
 def _measurements(table: _Table, output: int) -> Measurements:
-    theta_i, phi_i, theta_s, phi_s = np.degrees(table.values[:, :4].T)
-    theta_i, phi_i = unsign(theta_i, phi_i)
-    theta_r, phi_s = unsign(theta_s, phi_s)
-    phi_r = relative_azimuth(phi_s, phi_i, theta_r)
+    for column, name in ((0, "theta_i"), (2, "theta_s")):
+        bad = np.flatnonzero(~(np.abs(table.values[:, column]) <= np.pi / 2 + 1e-9))
+        if bad.size:
+            raise DataError(f"{name} = {table.values[bad[0], column]:g} is not a polar angle "
+                            "in radians (|angle| <= pi/2)", table.path, table.lines[bad[0]],
+                            "E1392 angles are radians: was the file written in degrees?")
+    with np.errstate(over="ignore", invalid="ignore"):  # huge azimuths: validate says so
+        theta_i, phi_i, theta_s, phi_s = np.degrees(table.values[:, :4].T)
+        theta_i, phi_i = unsign(theta_i, phi_i)
+        theta_r, phi_s = unsign(theta_s, phi_s)
+        phi_r = relative_azimuth(phi_s, phi_i, theta_r)
     metadata = {"sample" if key == SAMPLE_KEY else key.lower(): value
                 for key, value in table.header.items() if key not in NOT_IN_HEADER}
     metadata.setdefault("sample", table.path.stem)

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from brdfjax.formats import read_text, spectral
+from brdfjax.formats import read_text, spectral, split_lines
 from brdfjax.measurements import DataError, Measurements, validate
 
 ANGLES = ("theta_i", "theta_r", "phi_r")
@@ -111,7 +111,7 @@ def write(data: Measurements, path) -> None:
 
 def _lines(path):
     """(line number, stripped text) of every non-empty line."""
-    for number, raw in enumerate(read_text(path).splitlines(), start=1):
+    for number, raw in enumerate(split_lines(read_text(path)), start=1):
         text = raw.strip()
         if text:
             yield number, text

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from brdfjax.formats import read_text, spectral
+from brdfjax.formats import read_text, spectral, split_lines
 from brdfjax.formats.directions import relative_azimuth, unsign
 from brdfjax.measurements import DataError, Measurements, validate
 
@@ -93,7 +93,7 @@ def _measurements(table, lines, wavelength, path, in_plane_only=False) -> Measur
 def _read_table(path) -> tuple[dict, np.ndarray]:
     """The used columns as arrays, and the file line of each row."""
     text = read_text(path)
-    numbered = [(n, line.strip()) for n, line in enumerate(text.splitlines(), start=1)
+    numbered = [(n, line.strip()) for n, line in enumerate(split_lines(text), start=1)
                 if line.strip()]
     if not numbered:
         raise DataError("empty file", path)
@@ -117,8 +117,13 @@ def _read_table(path) -> tuple[dict, np.ndarray]:
         lines.append(number)
     if not rows:
         raise DataError("no data rows after the header", path)
-    values = np.array(rows).T
-    return dict(zip(where, values)), np.array(lines)
+    table = dict(zip(where, np.array(rows).T))
+    # Light from 10 nm to 1 mm, in micrometres; anything else is not a wavelength in um.
+    bad = np.flatnonzero(~((table["lambda"] >= 0.01) & (table["lambda"] <= 1000)))
+    if bad.size:
+        raise DataError(f"lambda = {table['lambda'][bad[0]]:g} is not a wavelength in "
+                        "micrometres", path, lines[bad[0]], "NIST tables give lambda in um")
+    return table, np.array(lines)
 
 
 def _column_indices(header, path, line) -> dict:

@@ -42,7 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
-from brdfjax.formats import read_text
+from brdfjax.formats import read_text, split_lines
 from brdfjax.measurements import DataError, Measurements, geometry_keys, validate
 
 SYMMETRIES = ("PlaneSymmetrical", "Asymmetrical")
@@ -121,14 +121,15 @@ class _Lines:
         self.path = path
         self.comments = []
         self.items = []
-        for number, raw in enumerate(text.splitlines(), start=1):
+        for number, raw in enumerate(split_lines(text), start=1):
             line = raw.strip()
             if line.startswith("#"):
                 self.comments.append(line[1:].strip())
             elif line:
                 self.items.append((number, line.split()))
         self.position = 0
-        self.last = len(text.splitlines())
+        # The last line, named when the file ends early; an empty file has none.
+        self.last = len(split_lines(text.rstrip("\r\n"))) if text.strip() else None
 
     def next(self, expecting: str):
         """The next (line number, tokens); `DataError` at the end of the file."""
