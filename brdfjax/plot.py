@@ -3,7 +3,9 @@
 matplotlib (Agg backend) is imported here only, when a figure is asked for. Curves show
 the projected BRDF ``f_r cos(theta_r)`` against the signed reflection angle (positive on
 the specular side), as the paper's Fig. 5/6 do; the 3-D view shows the fitted model over
-the whole hemisphere, as its Fig. 9-15 do. For uncertainty: bands on the curves
+the whole hemisphere, as its Fig. 9-15 do. Out-of-plane data are drawn as polar maps of
+data, model and residual (`plot_polar_maps`), spectral fits as parameters against
+wavelength (`plot_spectral`). For uncertainty: bands on the curves
 (`plot_fit`'s ``bands``, `plot_band_widths`), on the reflectance (`plot_reflectance_bands`),
 and the posterior's corner plot (`plot_corner`, with the ``corner`` package).
 """
@@ -84,13 +86,16 @@ def plot_hemisphere(params, incidences_deg, path, title: str = "", resolution: i
     """3-D surfaces of the model's f_r cos(theta_r) over the hemisphere, one per incidence.
 
     The horizontal coordinates are ``sin(tr) cos(pr)``, ``sin(tr) sin(pr)`` (the projected
-    hemisphere, source at +x), the height is f_r cos(tr).
+    hemisphere, source at +x), the height is f_r cos(tr). Each axis carries three or four
+    ticks in small type, so the labels do not run into each other.
     """
+    from matplotlib.ticker import MaxNLocator
+
     from brdfjax.model import projected_brdf
 
     plt = _pyplot()
     count = len(incidences_deg)
-    fig = plt.figure(figsize=(4.5 * count, 4.5))
+    fig = plt.figure(figsize=(5.2 * count, 5.2))
     theta_r, phi_r = np.meshgrid(np.radians(np.linspace(0, 89.5, resolution)),
                                  np.radians(np.linspace(0, 360, 2 * resolution)))
     for k, incidence in enumerate(incidences_deg):
@@ -99,13 +104,128 @@ def plot_hemisphere(params, incidences_deg, path, title: str = "", resolution: i
         ax = fig.add_subplot(1, count, k + 1, projection="3d")
         ax.plot_surface(np.sin(theta_r) * np.cos(phi_r), np.sin(theta_r) * np.sin(phi_r),
                         values, cmap="viridis", linewidth=0, rcount=80, ccount=80)
-        ax.set_title(f"incidence {incidence:g} deg", fontsize=9)
-        ax.set_xlabel("sin tr cos pr")
-        ax.set_ylabel("sin tr sin pr")
-        ax.set_zlabel("f_r cos tr")
+        ax.set_title(f"incidence {incidence:g} deg", fontsize=10)
+        for axis, ticks in ((ax.xaxis, 3), (ax.yaxis, 3), (ax.zaxis, 4)):
+            axis.set_major_locator(MaxNLocator(ticks))
+        ax.tick_params(labelsize=7, pad=1)
+        ax.set_xlabel("sin(theta_r) cos(phi_r)\n(+1: source side)", fontsize=8, labelpad=6)
+        ax.set_ylabel("sin(theta_r) sin(phi_r)", fontsize=8, labelpad=6)
+        ax.set_zlabel("f_r cos(theta_r)  (1/sr)", fontsize=8, labelpad=8)
+        ax.set_box_aspect(None, zoom=0.85)
     fig.suptitle(title or "fitted model over the hemisphere")
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.02, right=0.95, bottom=0.05, top=0.88, wspace=0.15)
     fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_polar_maps(data, predicted, path, title: str = "", max_rows: int = 6):
+    """Polar maps of the data, the model and their relative residual, per incidence.
+
+    theta_r is the radius (degrees, 0 at the centre) and phi_r the angle around it (0: the
+    source side, 180: the specular side). One row per incidence, or per incidence bin
+    (`~brdfjax.measurements.Measurements.incidence_bins`) when there are more than
+    ``max_rows``. The data and model columns share one colour scale (logarithmic when the
+    values span more than two decades), the residual column a symmetric one; every row
+    uses the same scales, so rows can be compared.
+
+    Args:
+        data: the measurements (any geometry).
+        predicted: the model's BRDF at the data's points, shape (N,), so any model works.
+        path: output image file.
+        title: figure title.
+        max_rows: the most rows (incidence bins) to draw.
+    """
+    from matplotlib.colors import LogNorm, Normalize
+
+    plt = _pyplot()
+    predicted = np.asarray(predicted, dtype=float).reshape(-1)
+    if predicted.shape != data.brdf.shape:
+        raise ValueError(f"predicted has {predicted.size} values, the data {len(data)}")
+    bins = data.incidence_bins(max_bins=max_rows)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        residual = 100 * (predicted - data.brdf) / np.abs(data.brdf)
+    both = np.concatenate([data.brdf, predicted])
+    positive = both[np.isfinite(both) & (both > 0)]
+    if positive.size and positive.max() > 100 * positive.min():
+        value_norm = LogNorm(positive.min(), positive.max())
+    else:
+        value_norm = Normalize(np.nanmin(both), np.nanmax(both))
+    limit = float(np.nanpercentile(np.abs(residual[np.isfinite(residual)]), 98)) \
+        if np.isfinite(residual).any() else 1.0
+    residual_norm = Normalize(-max(limit, 1e-9), max(limit, 1e-9))
+    columns = (("measured", "measured f_r (1/sr)", data.brdf, value_norm, "viridis"),
+               ("model", "model f_r (1/sr)", predicted, value_norm, "viridis"),
+               ("residual", "(model - measured) / measured (%)", residual, residual_norm,
+                "RdBu_r"))
+    rows = len(bins.labels)
+    fig, axes = plt.subplots(rows, 3, figsize=(10.5, 3.4 * rows + 1.4), layout="constrained",
+                             subplot_kw={"projection": "polar"}, squeeze=False)
+    size = float(np.clip(4000 / max(1, len(data) / rows), 4, 60))
+    for row, label in enumerate(bins.labels):
+        mask = bins.index == row
+        for column, (short, name, values, norm, cmap) in enumerate(columns):
+            ax = axes[row, column]
+            image = ax.scatter(data.phi_r[mask], np.degrees(data.theta_r[mask]),
+                               c=values[mask], norm=norm, cmap=cmap, s=size, linewidths=0)
+            ax.set_rlim(0, 90)
+            ax.set_rticks([30, 60, 90], ["30", "60", ""])
+            ax.set_rlabel_position(135)
+            ax.set_thetagrids([0, 90, 180, 270], ["0\nsource", "90", "180\nspecular", "270"])
+            ax.tick_params(labelsize=7, pad=1)
+            ax.set_title(f"{short}, incidence {label} ({int(mask.sum())} points)",
+                         fontsize=9, pad=8)
+            if row == rows - 1:
+                # fraction: the bar's share of the whole column's height.
+                bar = fig.colorbar(image, ax=axes[:, column], location="bottom",
+                                   shrink=0.85, aspect=25, fraction=0.12 / rows, pad=0.01)
+                bar.set_label(name, fontsize=9)
+                bar.ax.tick_params(labelsize=7)
+    fig.suptitle(f"{title or data.name}: polar maps, radius theta_r (deg), angle phi_r "
+                 "(deg)", fontsize=11)
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+
+
+def plot_spectral(records, path, names, title: str = ""):
+    """Each fitted parameter against wavelength, with its standard error as bars.
+
+    Args:
+        records: one dict per wavelength: ``{"wavelength_nm": float, "params": {name:
+            value}, "std": {name: value or None}}`` (``std`` may be missing or None).
+        path: output image file.
+        names: the parameters to draw, one panel each (e.g. ``("kb", "kr", "a", "b",
+            "kd")``).
+        title: figure title.
+    """
+    plt = _pyplot()
+    records = sorted(records, key=lambda r: r["wavelength_nm"])
+    wavelengths = np.array([r["wavelength_nm"] for r in records], dtype=float)
+    columns = min(3, len(names))
+    rows = -(-len(names) // columns)
+    fig, axes = plt.subplots(rows, columns, figsize=(4.2 * columns, 3.2 * rows),
+                             squeeze=False)
+    for ax, name in zip(axes.flat, names):
+        values = np.array([r["params"][name] for r in records], dtype=float)
+        errors = np.array([np.nan if (r.get("std") or {}).get(name) is None
+                           else r["std"][name] for r in records], dtype=float)
+        known = np.isfinite(errors)
+        ax.plot(wavelengths, values, "-", color="C0", lw=1)
+        ax.errorbar(wavelengths[known], values[known], yerr=errors[known], fmt="o",
+                    color="C0", capsize=4, ms=5)
+        if not known.all():
+            ax.plot(wavelengths[~known], values[~known], "o", mfc="white", mec="C0", ms=6,
+                    label="no uncertainty")
+            ax.legend(fontsize=7)
+        if np.all(values > 0) and values.max() > 100 * values.min():
+            ax.set_yscale("log")
+        ax.set_xlabel("wavelength (nm)")
+        ax.set_ylabel(name)
+        ax.grid(alpha=0.3)
+    for ax in axes.flat[len(names):]:
+        ax.set_visible(False)
+    fig.suptitle(title or "fitted parameters against wavelength (bars: 1 standard error)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
     plt.close(fig)
 
 

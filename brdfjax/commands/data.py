@@ -40,7 +40,8 @@ def register(subparsers) -> None:
 
     p = subparsers.add_parser("convert", help="convert between measurement formats",
                               description="Read any supported file and write brdfjax CSV "
-                                          "(.csv) or Zemax tabular BSDF (.bsdf).")
+                                          "(.csv), Zemax tabular BSDF (.bsdf) or ASTM "
+                                          "E1392 (.astm).")
     p.add_argument("input")
     p.add_argument("output")
     add_reader_options(p)
@@ -85,6 +86,10 @@ def run_convert(args) -> None:
     print(f"wrote {len(data)} points to {args.output}")
 
 
+# Up to this many distinct incidences are listed one by one; more are summarised as bins.
+LISTED_INCIDENCES = 12
+
+
 def run_info(args) -> None:
     from brdfjax.formats import load
 
@@ -94,8 +99,37 @@ def run_info(args) -> None:
         print(f"{key + ':':<12} {value}")
     print(f"points:      {len(data)}")
     print(f"in-plane:    {'yes' if data.in_plane else 'no'}")
-    print(f"incidences:  {', '.join(f'{x:g}' for x in data.incidences_deg)} deg")
+    print(f"incidences:  {describe_incidences(data)}")
     tr = np.degrees(data.theta_r)
     print(f"theta_r:     {tr.min():g} to {tr.max():g} deg")
     print(f"brdf:        {data.brdf.min():.4g} to {data.brdf.max():.4g} 1/sr")
     print(f"sigma:       {'given' if data.sigma is not None else 'none'}")
+    print(f"repeats:     {describe_repeats(data)}")
+
+
+def describe_incidences(data) -> str:
+    """The distinct incidences, or their range and bins when there are many."""
+    distinct = data.incidences_deg
+    if len(distinct) <= LISTED_INCIDENCES:
+        return f"{', '.join(f'{x:g}' for x in distinct)} deg"
+    bins = data.incidence_bins()
+    counts = np.bincount(bins.index)
+    listing = ", ".join(f"{label.removesuffix(' deg')} ({n})"
+                        for label, n in zip(bins.labels, counts))
+    return (f"{len(distinct)} distinct, {distinct.min():g} to {distinct.max():g} deg; "
+            f"bins (points): {listing} deg")
+
+
+def describe_repeats(data) -> str:
+    """How many geometries were read more than once, and how much their readings differ."""
+    from brdfjax.measurements import repeat_summary
+
+    summary = repeat_summary(data)
+    if summary.geometries == 0:
+        return "none (every geometry read once)"
+    text = (f"{summary.geometries} geometries read more than once ({summary.readings} "
+            f"readings, up to {summary.most} at one geometry)")
+    if np.isfinite(summary.median_spread):
+        text += (f"; spread of their readings (std / mean): median "
+                 f"{100 * summary.median_spread:.3g} %, max {100 * summary.max_spread:.3g} %")
+    return text

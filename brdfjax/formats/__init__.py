@@ -4,8 +4,12 @@
 |---|---|---|
 | brdfjax CSV | ``.csv`` | `brdfjax.formats.csv` |
 | NIST PTFE (Germer 2017) | ``.csv`` with a ``lambda,thetai,...`` header | `brdfjax.formats.nist` |
+| ASTM E1392 | ``.astm`` (or any text file with a ``VARS theta_i,...`` line) | `brdfjax.formats.astm` |
 | J&C RT-300S export | ``.xls`` | `brdfjax.formats.rt300s` |
 | Zemax tabular BSDF | ``.bsdf`` | `brdfjax.formats.zemax` |
+
+`load` reads one wavelength, `load_spectral` every wavelength of a file, and
+`load_geometry` also a CSV that lists angles without measured values (for predictions).
 """
 
 from __future__ import annotations
@@ -16,6 +20,10 @@ from pathlib import Path
 
 from brdfjax.measurements import DataError, Measurements
 
+# How much of a text file is looked at to tell its format.
+SNIFF_CHARACTERS = 65536
+WRITERS = {".csv": "csv", ".bsdf": "zemax", ".astm": "astm"}
+
 
 def load(path, **options) -> Measurements:
     """Read measurements from any supported file.
@@ -23,42 +31,126 @@ def load(path, **options) -> Measurements:
     Args:
         path: the file.
         **options: reader options: ``blank=`` (RT-300S blank file), ``wavelength_nm=``
-            (NIST, Zemax multi-wavelength files).
+            (NIST, ASTM and Zemax files).
 
     Returns:
         The validated `Measurements`.
     """
+    return _reader(path).read(path, **options)
+
+
+def load_geometry(path, **options) -> Measurements:
+    """Read the geometry of a file, which need not hold measured values.
+
+    A brdfjax CSV may lack the ``brdf`` column (``theta_i,theta_r,phi_r``): its points
+    then come back with ``brdf`` NaN (``Measurements.has_brdf`` is False), the angles
+    checked as `load` checks them. Files with values load as with `load`, values kept.
+
+    Args:
+        path: the file.
+        **options: as for `load`.
+
+    Returns:
+        The `Measurements` (angles in radians, as always).
+    """
+    reader = _reader(path)
+    if reader.__name__ == "brdfjax.formats.csv":
+        return reader.read(path, geometry_only=True, **options)
+    return reader.read(path, **options)
+
+
+def load_spectral(path, wavelengths=None) -> dict[float, Measurements]:
+    """Read every wavelength of a file (or the listed ones) as separate measurements.
+
+    NIST PTFE tables and ASTM files with spectral columns (``550nm``, ...) give one entry
+    per wavelength; any other file gives its single wavelength, which it must record
+    (``metadata["wavelength_nm"]``).
+
+    Args:
+        path: the file.
+        wavelengths: wavelengths in nm to read (each matched to 0.5 nm), or None for all.
+
+    Returns:
+        ``{wavelength_nm: Measurements}``, in the file's order or the order asked.
+
+    Raises:
+        DataError: for a wavelength the file does not hold, or a file without one.
+    """
+    from brdfjax.formats import spectral
+
+    reader = _reader(path)
+    if hasattr(reader, "read_spectral"):
+        return reader.read_spectral(path, wavelengths)
+    data = reader.read(path)
+    try:
+        wavelength = float(data.metadata["wavelength_nm"])
+    except (KeyError, ValueError):
+        raise DataError("the file records no wavelength in nm", path,
+                        hint="load it with load(); a brdfjax CSV records one in a "
+                             "'# wavelength_nm: 633' line") from None
+    spectral.pick_many([wavelength], wavelengths, path)
+    return {wavelength: data}
+
+
+def save(data: Measurements, path) -> None:
+    """Write measurements as brdfjax CSV (``.csv``), Zemax (``.bsdf``) or ASTM (``.astm``)."""
+    from importlib import import_module
+
+    suffix = Path(path).suffix.lower()
+    if suffix not in WRITERS:
+        raise DataError(f"cannot write {suffix!r}", path, hint="write .csv, .bsdf or .astm")
+    import_module(f"brdfjax.formats.{WRITERS[suffix]}").write(data, path)
+
+
+def read_text(path) -> str:
+    """A text file's content: UTF-8 (a byte-order mark dropped), else Latin-1.
+
+    Latin-1 decodes any bytes, so a file from an older spreadsheet ("CSV" in a Windows
+    code page) still reads; its numbers and column names are ASCII either way.
+
+    Raises:
+        DataError: when the file cannot be read.
+    """
+    try:
+        raw = Path(path).read_bytes()
+    except OSError as error:
+        raise DataError(f"cannot read the file ({error.strerror})", path) from None
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        return raw.decode("latin-1")
+
+
+def split_lines(text: str) -> list[str]:
+    """The lines of a text as an editor numbers them: split at ``\\n``, ``\\r\\n`` or ``\\r``.
+
+    (`str.splitlines` also splits at form feeds and other separators, which would make the
+    line numbers in messages disagree with the file.)
+    """
+    return text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
+
+
+def _reader(path):
+    """The reader module for a file: by suffix, and for text files by content."""
+    from brdfjax.formats import astm, csv, nist, rt300s, zemax
+
     path = Path(path)
     if not path.is_file():
         raise DataError("no such file", path)
     suffix = path.suffix.lower()
+    if suffix == ".xls":
+        return rt300s
+    if suffix == ".bsdf":
+        return zemax
+    head = read_text(path)[:SNIFF_CHARACTERS]
+    if suffix == ".astm" or astm.looks_like(head):
+        return astm
     if suffix == ".csv":
-        from brdfjax.formats import csv, nist
-
-        with open(path, encoding="utf-8", errors="replace") as handle:
-            first = handle.readline()
-        reader = nist if first.startswith("lambda,") else csv
-    elif suffix == ".xls":
-        from brdfjax.formats import rt300s as reader
-    elif suffix == ".bsdf":
-        from brdfjax.formats import zemax as reader
-    else:
-        raise DataError(f"unknown format {suffix!r}", path,
-                        hint="brdfjax reads .csv (its own or NIST's), .xls (J&C RT-300S) "
-                             "and .bsdf (Zemax tabular)")
-    return reader.read(path, **options)
-
-
-def save(data: Measurements, path) -> None:
-    """Write measurements as brdfjax CSV (``.csv``) or Zemax tabular BSDF (``.bsdf``)."""
-    suffix = Path(path).suffix.lower()
-    if suffix == ".csv":
-        from brdfjax.formats import csv as writer
-    elif suffix == ".bsdf":
-        from brdfjax.formats import zemax as writer
-    else:
-        raise DataError(f"cannot write {suffix!r}", path, hint="write .csv or .bsdf")
-    writer.write(data, path)
+        first = next((line.strip() for line in head.splitlines() if line.strip()), "")
+        return nist if first.startswith("lambda,") else csv
+    raise DataError(f"unknown format {suffix!r}", path,
+                    hint="brdfjax reads .csv (its own or NIST's), .astm (ASTM E1392), "
+                         ".xls (J&C RT-300S) and .bsdf (Zemax tabular)")
 
 
 def write_atomically(path, text: str) -> None:

@@ -11,46 +11,69 @@ Lines starting with ``#`` before the header are ``key: value`` metadata. The hea
 the columns, in any order: ``theta_i``, ``theta_r``, ``phi_r`` (degrees; ``phi_r = 180`` is
 the specular half of the plane of incidence, 0 the source side) and ``brdf`` (1/sr) are
 required; ``sigma`` (1/sr, a standard uncertainty) and ``weight`` (Eq. 6's g1 g2) are
-optional. One measurement per line.
+optional. One measurement per line; a geometry listed twice is two readings.
+
+Files as spreadsheets save them are read too:
+
+- UTF-8 with or without a byte-order mark (Excel's "CSV UTF-8"); text that is not UTF-8
+  is read as Latin-1 (older Excel "CSV" exports), which only matters in comments.
+- The separator is the one the header line uses: ``;``, a tab, or ``,`` (in that order
+  of precedence; column names contain none of them). Cells may be quoted.
+- With ``;`` or tab separators a comma inside a number is its decimal mark (``0,25``), as
+  spreadsheets in many locales write it. A comma-separated file cannot use a decimal
+  comma: its rows then have more cells than its header, and the message says so.
+- Column names are matched without regard to case.
+
+Without a ``brdf`` column a file holds geometry only: `read` with ``geometry_only=True``
+(`brdfjax.formats.load_geometry`) loads it with ``brdf`` NaN, for predictions; everywhere
+else the missing column is an error that says so.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from brdfjax.formats import read_text, spectral, split_lines
 from brdfjax.measurements import DataError, Measurements, validate
 
-REQUIRED = ("theta_i", "theta_r", "phi_r", "brdf")
+ANGLES = ("theta_i", "theta_r", "phi_r")
+REQUIRED = ANGLES + ("brdf",)
 OPTIONAL = ("sigma", "weight")
+# Tried in this order on the header line; the first one found is the separator.
+SEPARATORS = (";", "\t", ",")
 
 
-def read(path) -> Measurements:
-    """Read a brdfjax CSV file; raise `DataError` naming the line of any problem."""
-    metadata, header, rows, lines = {}, None, [], []
-    with open(path, encoding="utf-8") as handle:
-        for number, raw in enumerate(handle, start=1):
-            text = raw.strip()
-            if not text:
-                continue
-            if text.startswith("#"):
-                key, sep, value = text[1:].partition(":")
-                if sep and header is None:
-                    metadata[key.strip()] = value.strip()
-                continue
-            cells = [c.strip() for c in text.split(",")]
-            if header is None:
-                header = _check_header(cells, path, number)
-                continue
-            if len(cells) != len(header):
-                raise DataError(f"{len(cells)} cells, the header has {len(header)}", path,
-                                number, "one measurement per line, comma separated")
-            try:
-                rows.append([float(c) for c in cells])
-            except ValueError:
-                bad = next(c for c in cells if not _is_number(c))
-                column = header[cells.index(bad)]
-                raise DataError(f"{column} = {bad!r} is not a number", path, number) from None
-            lines.append(number)
+def read(path, wavelength_nm: float | None = None, geometry_only: bool = False) -> Measurements:
+    """Read a brdfjax CSV file; raise `DataError` naming the line of any problem.
+
+    Args:
+        path: the ``.csv`` file.
+        wavelength_nm: the wavelength the data must be at: checked against a
+            ``# wavelength_nm:`` line (to 0.5 nm), recorded where there is none.
+        geometry_only: accept a file without a ``brdf`` column (its brdf is then NaN).
+
+    Returns:
+        The validated `Measurements`.
+    """
+    metadata, header, separator, rows, lines = {}, None, ",", [], []
+    for number, text in _lines(path):
+        if text.startswith("#"):
+            key, sep, value = text[1:].partition(":")
+            if sep and header is None:
+                metadata[key.strip()] = value.strip()
+            continue
+        if header is None:
+            separator = next((s for s in SEPARATORS if s in text), ",")
+            header = _check_header(_cells(text, separator), path, number, geometry_only)
+            continue
+        cells = _cells(text, separator)
+        if separator != ",":
+            cells = [c.replace(",", ".") for c in cells]
+        if len(cells) != len(header):
+            raise DataError(f"{len(cells)} cells, the header has {len(header)}", path, number,
+                            _separator_hint(separator))
+        rows.append([_number(c, column, path, number) for c, column in zip(cells, header)])
+        lines.append(number)
     if header is None:
         raise DataError("empty file: no header line", path,
                         hint="the first non-comment line must be theta_i,theta_r,phi_r,brdf")
@@ -58,10 +81,15 @@ def read(path) -> Measurements:
         raise DataError("no measurements after the header", path)
     table = dict(zip(header, np.array(rows).T))
     metadata.setdefault("source", str(path))
+    if wavelength_nm is not None:
+        recorded = metadata.setdefault("wavelength_nm", f"{float(wavelength_nm):g}")
+        spectral.pick_many([_number(recorded, "wavelength_nm", path, None)], [wavelength_nm],
+                           path)
+    brdf = table.get("brdf", np.full(len(rows), np.nan))
     data = Measurements.from_degrees(
-        table["theta_i"], table["theta_r"], table["phi_r"], table["brdf"],
+        table["theta_i"], table["theta_r"], table["phi_r"], brdf,
         sigma=table.get("sigma"), weights=table.get("weight"), metadata=metadata)
-    return validate(data, path, np.array(lines))
+    return validate(data, path, np.array(lines), geometry_only="brdf" not in table)
 
 
 def write(data: Measurements, path) -> None:
@@ -81,19 +109,55 @@ def write(data: Measurements, path) -> None:
     write_atomically(path, "\n".join(lines) + "\n")
 
 
-def _check_header(cells, path, number):
+def _lines(path):
+    """(line number, stripped text) of every non-empty line."""
+    for number, raw in enumerate(split_lines(read_text(path)), start=1):
+        text = raw.strip()
+        if text:
+            yield number, text
+
+
+def _cells(text: str, separator: str) -> list:
+    return [c.strip().strip('"').strip() for c in text.split(separator)]
+
+
+def _separator_hint(separator: str) -> str:
+    if separator == ",":
+        return ("one measurement per line; the header is comma separated, so numbers must "
+                "use a decimal point (a file with decimal commas needs ';' separators)")
+    name = "tab" if separator == "\t" else f"'{separator}'"
+    return f"one measurement per line, {name} separated, as the header is"
+
+
+def _number(cell: str, column: str, path, line: int) -> float:
+    try:
+        return float(cell)
+    except ValueError:
+        raise DataError(f"{column} = {cell!r} is not a number", path, line) from None
+
+
+def _check_header(cells, path, number, geometry_only):
+    cells = [c.lower() for c in cells]
     if all(_is_number(c) for c in cells):
         raise DataError("the first line is data, not a header", path, number,
                         "add the header line theta_i,theta_r,phi_r,brdf")
-    missing = [c for c in REQUIRED if c not in cells]
+    missing = [c for c in ANGLES if c not in cells]
     if missing:
         raise DataError(f"missing column {', '.join(missing)}", path, number,
                         f"the header must name {','.join(REQUIRED)} (optional: "
                         f"{', '.join(OPTIONAL)})")
+    if "brdf" not in cells and not geometry_only:
+        raise DataError("no brdf column: the file holds geometry only", path, number,
+                        "a fit needs the measured BRDF (1/sr) in a column named brdf; "
+                        "for predictions load the geometry with "
+                        "brdfjax.formats.load_geometry")
     unknown = [c for c in cells if c not in REQUIRED + OPTIONAL]
     if unknown:
         raise DataError(f"unknown column {', '.join(unknown)}", path, number,
                         f"known columns: {', '.join(REQUIRED + OPTIONAL)}")
+    repeated = sorted({c for c in cells if cells.count(c) > 1})
+    if repeated:
+        raise DataError(f"column {', '.join(repeated)} named twice", path, number)
     return cells
 
 

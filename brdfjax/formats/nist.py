@@ -19,16 +19,13 @@ from pathlib import Path
 
 import numpy as np
 
-from brdfjax.formats.zemax import merge_repeats
+from brdfjax.formats import read_text, spectral, split_lines
+from brdfjax.formats.directions import relative_azimuth, unsign
 from brdfjax.measurements import DataError, Measurements, validate
 
 # The columns used, with the spellings found in the published files.
 COLUMNS = {"lambda": ("lambda",), "thetai": ("thetai",), "phii": ("phii", "phi"),
            "thetar": ("thetar",), "phir": ("phir",), "fr11": ("fr11", "f_r11")}
-# Wavelengths that agree to this many nanometres are the same.
-WAVELENGTH_TOLERANCE_NM = 0.5
-# In-plane points come out of the azimuth subtraction within rounding of 0 or 180 deg.
-IN_PLANE_TOLERANCE_DEG = 1e-6
 
 
 def read(path, wavelength_nm: float | None = None, in_plane_only: bool = False) -> Measurements:
@@ -41,26 +38,47 @@ def read(path, wavelength_nm: float | None = None, in_plane_only: bool = False) 
         in_plane_only: keep only the points in the plane of incidence.
 
     Returns:
-        The validated `Measurements` (repeated geometries averaged, see ``metadata``).
+        The validated `Measurements`, one point per row (a repeated geometry is kept
+        as another reading).
 
     Raises:
         DataError: for a malformed file, or a missing or ambiguous wavelength.
     """
     path = Path(path)
     table, lines = _read_table(path)
-    pick = _pick_wavelength(table["lambda"] * 1000.0, wavelength_nm, path)
+    wavelength = spectral.pick_one(_wavelengths_nm(table), wavelength_nm, path)
+    return _measurements(table, lines, wavelength, path, in_plane_only)
+
+
+def read_spectral(path, wavelengths_nm=None) -> dict[float, Measurements]:
+    """Read every wavelength of a NIST PTFE table (or the listed ones), parsing it once.
+
+    Returns:
+        ``{wavelength_nm: Measurements}`` in the order asked (ascending by default).
+    """
+    path = Path(path)
+    table, lines = _read_table(path)
+    chosen = spectral.pick_many(_wavelengths_nm(table), wavelengths_nm, path)
+    return {w: _measurements(table, lines, w, path) for w in chosen}
+
+
+def _wavelengths_nm(table) -> np.ndarray:
+    return np.unique(np.round(table["lambda"] * 1000.0, 3))
+
+
+def _measurements(table, lines, wavelength, path, in_plane_only=False) -> Measurements:
+    """The validated measurements of the rows at one of the file's wavelengths."""
+    pick = np.abs(table["lambda"] * 1000.0 - wavelength) <= spectral.WAVELENGTH_TOLERANCE_NM
     table = {name: values[pick] for name, values in table.items()}
     lines = lines[pick]
-    theta_i, phi_source = _unsign(table["thetai"], table["phii"])
-    theta_r, phi_detector = _unsign(table["thetar"], table["phir"])
-    phi_r = _relative_azimuth(phi_detector, phi_source, theta_r)
+    theta_i, phi_source = unsign(table["thetai"], table["phii"])
+    theta_r, phi_detector = unsign(table["thetar"], table["phir"])
+    phi_r = relative_azimuth(phi_detector, phi_source, theta_r)
     angles = np.stack([theta_i, theta_r, phi_r], axis=1)
-    angles, brdf, lines, merged = merge_repeats(angles, table["fr11"], lines)
+    brdf = table["fr11"]
     wavelength = float(np.round(np.mean(table["lambda"]) * 1000.0, 3))
     metadata = {"sample": path.name.split(".")[0], "wavelength_nm": wavelength,
                 "source": str(path), "format": "NIST PTFE BRDF table (Germer 2017)"}
-    if merged:
-        metadata["repeats_averaged"] = f"{merged} rows on an already listed geometry averaged"
     if in_plane_only:
         plane = np.abs(np.sin(np.radians(angles[:, 2]))) < 1e-9
         if not plane.any():
@@ -74,11 +92,8 @@ def read(path, wavelength_nm: float | None = None, in_plane_only: bool = False) 
 
 def _read_table(path) -> tuple[dict, np.ndarray]:
     """The used columns as arrays, and the file line of each row."""
-    try:
-        text = path.read_text(encoding="utf-8", errors="replace")
-    except OSError as error:
-        raise DataError(f"cannot read the file ({error.strerror})", path) from None
-    numbered = [(n, line.strip()) for n, line in enumerate(text.splitlines(), start=1)
+    text = read_text(path)
+    numbered = [(n, line.strip()) for n, line in enumerate(split_lines(text), start=1)
                 if line.strip()]
     if not numbered:
         raise DataError("empty file", path)
@@ -102,8 +117,13 @@ def _read_table(path) -> tuple[dict, np.ndarray]:
         lines.append(number)
     if not rows:
         raise DataError("no data rows after the header", path)
-    values = np.array(rows).T
-    return dict(zip(where, values)), np.array(lines)
+    table = dict(zip(where, np.array(rows).T))
+    # Light from 10 nm to 1 mm, in micrometres; anything else is not a wavelength in um.
+    bad = np.flatnonzero(~((table["lambda"] >= 0.01) & (table["lambda"] <= 1000)))
+    if bad.size:
+        raise DataError(f"lambda = {table['lambda'][bad[0]]:g} is not a wavelength in "
+                        "micrometres", path, lines[bad[0]], "NIST tables give lambda in um")
+    return table, np.array(lines)
 
 
 def _column_indices(header, path, line) -> dict:
@@ -115,34 +135,3 @@ def _column_indices(header, path, line) -> dict:
                             "a NIST PTFE table starts lambda,thetai,phii,thetar,phir,fr11")
         where[name] = found[0]
     return where
-
-
-def _pick_wavelength(wavelengths_nm, wanted_nm, path) -> np.ndarray:
-    """The rows of the wanted wavelength; `DataError` if it is absent or not chosen."""
-    available = np.unique(np.round(wavelengths_nm, 3))
-    listing = ", ".join(f"{w:g}" for w in available) + " nm"
-    if wanted_nm is None:
-        if len(available) > 1:
-            raise DataError(f"the file holds {len(available)} wavelengths: {listing}", path,
-                            hint="choose one with wavelength_nm= (CLI: --wavelength)")
-        return np.ones(len(wavelengths_nm), dtype=bool)
-    pick = np.abs(wavelengths_nm - float(wanted_nm)) <= WAVELENGTH_TOLERANCE_NM
-    if not pick.any():
-        raise DataError(f"no data at {float(wanted_nm):g} nm; the file holds {listing}", path,
-                        hint="choose one of the listed wavelengths")
-    return pick
-
-
-def _unsign(polar, azimuth) -> tuple[np.ndarray, np.ndarray]:
-    """A negative polar angle is the positive angle on the opposite azimuth."""
-    negative = polar < 0
-    return np.abs(polar), np.where(negative, azimuth + 180.0, azimuth)
-
-
-def _relative_azimuth(phi_detector, phi_source, theta_r) -> np.ndarray:
-    """``phi_r`` in (-180, 180] with the source at 0; in-plane values exactly 0 or 180."""
-    phi = 180.0 - np.mod(180.0 - (phi_detector - phi_source), 360.0)
-    phi = np.where(np.abs(phi) < IN_PLANE_TOLERANCE_DEG, 0.0, phi)
-    phi = np.where(np.abs(np.abs(phi) - 180.0) < IN_PLANE_TOLERANCE_DEG, 180.0, phi)
-    # The normal has no azimuth.
-    return np.where(theta_r == 0, 0.0, phi)

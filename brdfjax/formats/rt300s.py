@@ -16,6 +16,7 @@ with ``RT_blank`` the reading of a blank (the empty sample holder) at the same
 
 from __future__ import annotations
 
+import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -66,7 +67,8 @@ def read(path, blank=None, keep_beam_crossing: bool = False,
     The blank reading at the same (Incidence, Receive) is subtracted and the difference
     divided by ``pi cos(Receive)``. ``Receive > 0`` is the specular side, so a point becomes
     ``theta_r = |Receive|`` with ``phi_r = 180`` deg when ``Receive > 0`` and 0 otherwise.
-    A geometry the instrument measured more than once is averaged (see ``metadata``).
+    A geometry the sample was read at more than once gives one point per reading; the
+    blank's repeats are averaged (it is a correction, subtracted from every reading).
 
     Args:
         path: the sample's ``.xls`` file.
@@ -87,7 +89,7 @@ def read(path, blank=None, keep_beam_crossing: bool = False,
     if blank_path.resolve() == path.resolve():
         raise DataError("the sample and the blank are the same file", path,
                         hint="pass blank= the empty-holder measurement")
-    sample, merged = _average_repeats(in_plane(read_scan(path), path))
+    sample = in_plane(read_scan(path), path)
     reference, merged_blank = _average_repeats(in_plane(read_scan(blank_path), blank_path))
     rt_blank = _blank_readings(sample, reference, path, blank_path)
     crossing = np.abs(sample.receive + sample.incidence) <= BEAM_CROSSING_DEG + 1e-9
@@ -103,9 +105,8 @@ def read(path, blank=None, keep_beam_crossing: bool = False,
                          f"{int(crossing.sum())} points with |Receive + Incidence| <= "
                          f"{BEAM_CROSSING_DEG:g} deg",
     }
-    if merged or merged_blank:
-        metadata["repeats_averaged"] = (f"{merged} repeated sample readings and "
-                                        f"{merged_blank} repeated blank readings averaged")
+    if merged_blank:
+        metadata["blank_repeats_averaged"] = f"{merged_blank} repeated blank readings"
     receive = sample.receive[keep]
     data = Measurements.from_degrees(
         sample.incidence[keep], np.abs(receive), np.where(receive > 0, 180.0, 0.0),
@@ -150,10 +151,14 @@ def read_scan(path) -> Scan:
     if not path.is_file():
         raise DataError("no such file", path)
     try:
-        book = xlrd.open_workbook(str(path))
-    except (xlrd.XLRDError, OSError, ValueError, AssertionError) as error:
-        raise DataError(f"not a readable .xls workbook ({error})", path,
-                        hint="export the RT-300S data as Excel 97-2003 .xls") from None
+        with open(os.devnull, "w") as quiet:  # xlrd prints its warnings otherwise
+            book = xlrd.open_workbook(str(path), logfile=quiet)
+    # A damaged workbook fails anywhere inside xlrd's parser (IndexError, struct.error,
+    # KeyError, ... found by tests/test_formats_fuzz.py): every failure there means the
+    # same thing to the user.
+    except Exception as error:  # noqa: BLE001
+        raise DataError(f"not a readable .xls workbook ({type(error).__name__}: {error})",
+                        path, hint="export the RT-300S data as Excel 97-2003 .xls") from None
     columns = []
     for sheet in book.sheets():
         if sheet.nrows:

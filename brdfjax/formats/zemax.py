@@ -42,7 +42,8 @@ from pathlib import Path
 
 import numpy as np
 
-from brdfjax.measurements import DataError, Measurements, validate
+from brdfjax.formats import read_text, split_lines
+from brdfjax.measurements import DataError, Measurements, geometry_keys, validate
 
 SYMMETRIES = ("PlaneSymmetrical", "Asymmetrical")
 HORIZON_DEG = 90.0
@@ -120,14 +121,15 @@ class _Lines:
         self.path = path
         self.comments = []
         self.items = []
-        for number, raw in enumerate(text.splitlines(), start=1):
+        for number, raw in enumerate(split_lines(text), start=1):
             line = raw.strip()
             if line.startswith("#"):
                 self.comments.append(line[1:].strip())
             elif line:
                 self.items.append((number, line.split()))
         self.position = 0
-        self.last = len(text.splitlines())
+        # The last line, named when the file ends early; an empty file has none.
+        self.last = len(split_lines(text.rstrip("\r\n"))) if text.strip() else None
 
     def next(self, expecting: str):
         """The next (line number, tokens); `DataError` at the end of the file."""
@@ -242,7 +244,9 @@ def read(path, incidence=None, wavelength_nm: float | None = None,
     Every table entry becomes a point ``(theta_i, theta_r, phi_r)`` (see the module
     docstring for the conversion). Directions at or below the horizon are dropped, as are
     entries that are exactly 0 (tables pad missing data with 0) unless ``keep_zeros``.
-    Entries that fall on the same direction (radial 0 at every azimuth) are averaged.
+    The specular direction (radial 0), listed once per azimuth row, is one reading when
+    its entries agree; entries at one direction with different values are all kept, each
+    an independent reading (as the CSV reader keeps repeated rows).
 
     Args:
         path: the ``.bsdf`` file.
@@ -254,11 +258,7 @@ def read(path, incidence=None, wavelength_nm: float | None = None,
         The validated `Measurements`; ``metadata["tis"]`` holds the file's TIS values.
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8", errors="replace")
-    except OSError as error:
-        raise DataError(f"cannot read the file ({error.strerror})", path) from None
-    lines = _Lines(path, text)
+    lines = _Lines(path, read_text(path))
     header, where = _read_header(lines)
     _check_header(header, where, path)
     tis, tables, rows = _read_blocks(lines, header)
@@ -273,14 +273,14 @@ def read(path, incidence=None, wavelength_nm: float | None = None,
     if not keep_zeros:
         keep &= tables != 0
     angles = np.stack([aoi[keep], theta_r[keep], phi_r[keep]], axis=1)
-    angles, brdf, first_lines, merged = merge_repeats(angles, tables[keep], line[keep])
+    angles, brdf, first_lines, copies = _drop_copies(angles, tables[keep], line[keep])
     metadata = _metadata(path, lines.comments, header, wavelength_nm)
     metadata["tis"] = ", ".join(f"{a:g}: {t:g}" for a, t in zip(incidences, tis))
     if not keep_zeros and zeros.any():
         metadata["zeros_dropped"] = int(zeros.sum())
-    if merged:
-        metadata["repeats_averaged"] = (f"{merged} table entries on an already listed "
-                                        "direction (e.g. radial 0 at each azimuth) averaged")
+    if copies:
+        metadata["copies_dropped"] = (f"{copies} table entries repeating the direction and "
+                                      "value of an earlier one (radial 0 in each azimuth row)")
     data = Measurements.from_degrees(*angles.T, brdf, metadata=metadata)
     return validate(data, path, first_lines)
 
@@ -315,10 +315,10 @@ def _metadata(path, comments, header, wavelength_nm) -> dict:
 
 
 def merge_repeats(angles_deg, values, lines=None):
-    """Average the values of points that share a geometry.
+    """Average the values of points that share a geometry (one value per table cell).
 
-    Two points share a geometry when ``(theta_i, theta_r, phi_r mod 360)`` agree to 1e-6
-    deg (the check `~brdfjax.measurements.validate` applies); the normal direction
+    Two points share a geometry when `~brdfjax.measurements.geometry_keys` says so:
+    ``(theta_i, theta_r, phi_r mod 360)`` agree to 1e-6 deg, and the normal direction
     ``theta_r = 0`` is one point whatever its azimuth.
 
     Args:
@@ -332,9 +332,7 @@ def merge_repeats(angles_deg, values, lines=None):
     """
     angles = np.asarray(angles_deg, dtype=float)
     values = np.asarray(values, dtype=float)
-    key = np.round(angles, DECIMALS)
-    key[:, 2] = np.mod(key[:, 2], 360.0)
-    key[key[:, 1] == 0, 2] = 0.0
+    key = geometry_keys(*angles.T)
     _, first, inverse, counts = np.unique(key, axis=0, return_index=True,
                                           return_inverse=True, return_counts=True)
     order = np.argsort(first)
@@ -342,6 +340,20 @@ def merge_repeats(angles_deg, values, lines=None):
     picked = first[order]
     lines = None if lines is None else np.asarray(lines)[picked]
     return angles[picked], means, lines, int(len(values) - len(picked))
+
+
+def _drop_copies(angles_deg, values, lines):
+    """Keep one of the entries that repeat both a direction and its value exactly.
+
+    The format lists the specular direction (radial 0) once per azimuth row: those cells
+    are one direction, and a table that writes the same value in each holds one reading,
+    written several times. Entries at one direction with different values are different
+    readings and are all kept, as the CSV reader keeps repeated rows.
+    """
+    key = np.column_stack([geometry_keys(*np.asarray(angles_deg, dtype=float).T), values])
+    _, first = np.unique(key, axis=0, return_index=True)
+    first = np.sort(first)
+    return angles_deg[first], values[first], lines[first], int(len(values) - len(first))
 
 
 # --- writing ----------------------------------------------------------------------------
@@ -358,9 +370,10 @@ def write(data: Measurements, path) -> None:
     Raises:
         DataError: when a cell above the horizon has no measurement.
     """
-    theta_i = np.round(np.degrees(data.theta_i), DECIMALS)
-    azimuth, radial = angles_to_zemax(theta_i, np.degrees(data.theta_r),
-                                      np.degrees(data.phi_r))
+    angles, brdf, _, merged = merge_repeats(
+        np.degrees(np.stack([data.theta_i, data.theta_r, data.phi_r], axis=1)), data.brdf)
+    theta_i = np.round(angles[:, 0], DECIMALS)
+    azimuth, radial = angles_to_zemax(theta_i, angles[:, 1], angles[:, 2])
     azimuth, radial = np.round(azimuth, DECIMALS), np.round(radial, DECIMALS)
     incidences = np.unique(theta_i)
     azimuths = np.unique(azimuth[radial > 0]) if np.any(radial > 0) else np.array([0.0])
@@ -369,9 +382,9 @@ def write(data: Measurements, path) -> None:
     i = np.searchsorted(incidences, theta_i)
     j = np.searchsorted(radials, radial)
     specular = radial == 0
-    table[i[specular], :, j[specular]] = data.brdf[specular, None]
+    table[i[specular], :, j[specular]] = brdf[specular, None]
     table[i[~specular], np.searchsorted(azimuths, azimuth[~specular]), j[~specular]] = \
-        data.brdf[~specular]
+        brdf[~specular]
     theta_r, _ = zemax_to_angles(*np.meshgrid(incidences, azimuths, radials, indexing="ij"))
     below = theta_r >= HORIZON_DEG - 1e-9
     table[below & np.isnan(table)] = 0.0
@@ -386,6 +399,9 @@ def write(data: Measurements, path) -> None:
     comments = [f"{key}: {value}" for key, value in data.metadata.items()
                 if key in ("sample", "wavelength_nm")]
     comments.insert(0, "Measured BRDF written by brdfjax")
+    if merged:
+        comments.append(f"repeats_averaged: {merged} repeated readings averaged into their "
+                        "table cells")
     _write_table(path, "Measured", incidences, azimuths, radials, table, comments)
 
 
@@ -410,25 +426,47 @@ def write_model(path, params, incidences_deg, azimuths_deg=tuple(range(0, 181, 1
         wavelength_nm: recorded in a comment when given.
         model: a model name or `brdfjax.models.Model` (the five-parameter model if None).
     """
-    from brdfjax.model import as_vector, brdf  # JAX only for the export
-    from brdfjax.models import get
-
-    model = get(model)
     incidences, azimuths, radials = (np.sort(np.asarray(x, dtype=float).reshape(-1))
                                      for x in (incidences_deg, azimuths_deg, radial_deg))
     aoi, azimuth, radial = np.meshgrid(incidences, azimuths, radials, indexing="ij")
     theta_r, phi_r = zemax_to_angles(aoi, azimuth, radial)
     above = theta_r < HORIZON_DEG - 1e-9
-    values = np.asarray(brdf(params, np.radians(aoi), np.radians(np.minimum(theta_r, 90.0)),
-                             np.radians(phi_r), model=model), dtype=float)
+    values = evaluate_model(params, aoi, np.minimum(theta_r, 90.0), phi_r, model)
     table = np.where(above, values, 0.0)
-    vector = np.asarray(as_vector(params), dtype=float)
-    comments = [f"Sample: {sample}",
-                f"BRDF model {model.name} ({model.summary.split(':')[0]}), exported by brdfjax",
-                "parameters: " + ", ".join(f"{n}={v:.8g}" for n, v in zip(model.names, vector))]
+    comments = [f"Sample: {sample}", model_comment(model), parameter_comment(params, model)]
     if wavelength_nm is not None:
         comments.append(f"wavelength_nm: {wavelength_nm:g}")
     _write_table(path, "Model", incidences, azimuths, radials, table, comments)
+
+
+def evaluate_model(params, theta_i_deg, theta_r_deg, phi_r_deg, model=None) -> np.ndarray:
+    """A model's BRDF (1/sr) at the given angles (degrees, broadcast), for the exports.
+
+    The one place the Zemax and ASTM exports evaluate a fitted model (``model``: a name or
+    `brdfjax.models.Model`, the five-parameter model if None).
+    """
+    from brdfjax.model import brdf  # JAX only for the export
+
+    angles = np.radians(np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in
+                                              (theta_i_deg, theta_r_deg, phi_r_deg))))
+    return np.asarray(brdf(params, *angles, model=model), dtype=float)
+
+
+def model_comment(model=None) -> str:
+    """Which model an export tabulates, for its header."""
+    from brdfjax.models import get
+
+    model = get(model)
+    return f"BRDF model {model.name} ({model.summary.split(':')[0]}), exported by brdfjax"
+
+
+def parameter_comment(params, model=None) -> str:
+    """``"parameters: kb=..., kr=..., ..."`` (the model's names) for an export's header."""
+    from brdfjax.model import as_vector
+    from brdfjax.models import get
+
+    vector = np.asarray(as_vector(params), dtype=float)
+    return "parameters: " + ", ".join(f"{n}={v:.8g}" for n, v in zip(get(model).names, vector))
 
 
 def tis(table, incidence_deg, azimuths_deg, radial_deg) -> float:
