@@ -14,6 +14,7 @@ import sys
 # Each module defines ``register(subparsers)``, adding its commands with a ``run`` default.
 COMMAND_MODULES = (
     "brdfjax.commands.fitting",
+    "brdfjax.commands.models",
     "brdfjax.commands.data",
     "brdfjax.commands.batch",
     "brdfjax.commands.instrument",
@@ -23,8 +24,9 @@ COMMAND_MODULES = (
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="brdfjax",
-        description="Fit the five-parameter BRDF model (Zhang, Wu, Cao, Zhang) to measured "
-                    "BRDF data.")
+        description="Fit BRDF models (the five-parameter model of Zhang, Wu, Cao and Zhang "
+                    "by default; torrance-sparrow, ggx, beckmann, lambert, rpv) to measured "
+                    "BRDF data, cross-validate them and predict new geometry.")
     parser.add_argument("--version", action="version", version="brdfjax 0.1.0")
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in COMMAND_MODULES:

@@ -49,6 +49,7 @@ class FitResult:
         method: the method used; train_incidences, validation_incidences: in degrees.
         message: why the status, where there is more to say (a batch sample's data error).
         model: the `brdfjax.models.Model` fitted.
+        training: the measurements fitted (for cross-validation and predictions).
     """
 
     params: tuple
@@ -70,6 +71,7 @@ class FitResult:
     bounds: Bounds = field(repr=False)
     model: Model = field(default=FIVE)
     message: str = ""
+    training: Measurements | None = field(default=None, repr=False)
 
     @property
     def vector(self) -> np.ndarray:
@@ -260,6 +262,6 @@ def fit_result(data, train, held, vector, bounds, model, geometry=None,
         at_bounds=[n for n, z in zip(model.names, unit) if z < 1e-6 or z > 1 - 1e-6],
         train_incidences=[float(x) for x in train.incidences_deg],
         validation_incidences=[float(x) for x in held.incidences_deg],
-        bounds=bounds, model=model, **details)
+        bounds=bounds, model=model, training=train, **details)
 
 

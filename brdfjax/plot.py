@@ -344,3 +344,52 @@ def plot_band_widths(bands, path, title: str = "", held_out=()):
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+def plot_models(data, comparison, path, title: str = "", max_panels: int = 6):
+    """Each model's fit over the data, one panel per incidence (up to ``max_panels``).
+
+    Solid: the fit on all incidences; dashed: the fit of the fold that held this incidence
+    out, i.e. the model's prediction of an incidence it did not see. The legend gives each
+    model's held-out E at that incidence.
+    """
+    from brdfjax.model import projected_brdf
+
+    plt = _pyplot()
+    folds = comparison.best.validation.folds
+    panels = folds[:max_panels]
+    columns = min(3, len(panels))
+    rows = -(-len(panels) // columns)
+    fig, axes = plt.subplots(rows, columns, figsize=(4.6 * columns, 3.6 * rows), squeeze=False)
+    colours = plt.get_cmap("tab10")
+    for ax, fold in zip(axes.ravel(), panels):
+        subset = data.at_incidences([fold.low]) if fold.low == fold.high else data.select(
+            (np.degrees(data.theta_i) >= fold.low) & (np.degrees(data.theta_i) <= fold.high))
+        ax.plot(signed_angle_deg(subset), subset.brdf * np.cos(subset.theta_r), "o", ms=2.5,
+                color="0.3", label="data")
+        angles, signed = curve_angles((fold.low + fold.high) / 2)
+        for k, name in enumerate(comparison.ranking):
+            score = next(s for s in comparison.scores if s.name == name)
+            held = next(f for f in score.validation.folds if f.label == fold.label)
+            colour = colours(k % 10)
+            ax.plot(signed, np.asarray(projected_brdf(score.fit.vector, *angles,
+                                                      model=score.fit.model)),
+                    "-", color=colour, lw=1.2,
+                    label=f"{name} (held-out E {100 * held.held_error:.3g} %)")
+            ax.plot(signed, np.asarray(projected_brdf(held.params, *angles,
+                                                      model=score.fit.model)),
+                    "--", color=colour, lw=1.0)
+        kind = "" if fold.interior else ", extrapolation"
+        ax.set_title(f"incidence {fold.label} deg{kind}", fontsize=9)
+        ax.set_xlabel("theta_r (deg; > 0 specular side)", fontsize=8)
+        ax.set_ylabel("f_r cos(theta_r) (1/sr)", fontsize=8)
+        ax.tick_params(labelsize=7)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=6)
+    for ax in axes.ravel()[len(panels):]:
+        ax.axis("off")
+    fig.suptitle(title or f"{data.name}: models ranked by cv_error (solid: fit on all "
+                          "incidences; dashed: fit without that incidence)", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -21,6 +21,7 @@ fold. Data are taken as scattered when they have more distinct incidences than
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -110,10 +111,10 @@ class CrossValidation:
 
     def table(self) -> str:
         """A readable table of the folds."""
-        lines = [f"cross-validation by incidence ({self.model}): cv_error = "
-                 f"{100 * self.cv_error:.4g} % (mean held-out E of the interior folds)",
-                 f"  {'held out (deg)':>15} {'train E (%)':>12} {'held-out E (%)':>15} "
-                 f"{'ratio':>8}"]
+        lines = [(f"cross-validation by incidence ({self.model}): cv_error = "
+                 f"{100 * self.cv_error:.4g} % (mean held-out E of the interior folds)"),
+                 (f"  {'held out (deg)':>15} {'train E (%)':>12} {'held-out E (%)':>15} "
+                 f"{'ratio':>8}")]
         for f in self.folds:
             kind = "" if f.interior else "  (extrapolation)"
             lines.append(f"  {f.label:>15} {100 * f.train_error:12.4g} "
@@ -135,7 +136,7 @@ def incidence_groups(data: Measurements) -> list[tuple[str, float, float, np.nda
     edges = np.unique(np.round(np.quantile(degrees, np.linspace(0, 1, SCATTERED_BINS + 1))))
     edges[0], edges[-1] = min(edges[0], distinct[0]), max(edges[-1], distinct[-1])
     groups = []
-    for k, (low, high) in enumerate(zip(edges[:-1], edges[1:])):
+    for k, (low, high) in enumerate(itertools.pairwise(edges)):
         last = k == len(edges) - 2
         mask = (degrees >= low) & ((degrees <= high) if last else (degrees < high))
         if mask.any():
