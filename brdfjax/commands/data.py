@@ -4,7 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from brdfjax.commands import add_reader_options, angles, parameters, reader_options
+from brdfjax.commands import (
+    add_reader_options,
+    angles,
+    check_writable,
+    parameters,
+    reader_options,
+)
 
 
 def register(subparsers) -> None:
@@ -31,13 +37,13 @@ def register(subparsers) -> None:
     p = subparsers.add_parser("convert", help="convert between measurement formats",
                               description="Read any supported file and write brdfjax CSV "
                                           "(.csv) or Zemax tabular BSDF (.bsdf).")
-    p.add_argument("input")
-    p.add_argument("output")
+    p.add_argument("input", help="the file to read (any format `brdfjax fit` reads)")
+    p.add_argument("output", help="the file to write: .csv (brdfjax CSV) or .bsdf (Zemax)")
     add_reader_options(p)
     p.set_defaults(run=run_convert)
 
     p = subparsers.add_parser("info", help="summary of a measurement file")
-    p.add_argument("file")
+    p.add_argument("file", help="the measurement file (any format `brdfjax fit` reads)")
     add_reader_options(p)
     p.set_defaults(run=run_info)
 
@@ -68,6 +74,7 @@ def run_reflectance(args) -> None:
 def run_convert(args) -> None:
     from brdfjax.formats import load, save
 
+    check_writable({"output": args.output})
     data = load(args.input, **reader_options(args))
     save(data, args.output)
     print(f"wrote {len(data)} points to {args.output}")

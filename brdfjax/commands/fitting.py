@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
 import numpy as np
 
-from brdfjax.commands import add_reader_options, angles, reader_options
+from brdfjax.commands import add_reader_options, angles, check_writable, reader_options
 
 DATA = Path(__file__).resolve().parents[2] / "data"
 UNCERTAINTY_METHODS = ("none", "laplace", "mcmc")
@@ -15,15 +16,19 @@ UNCERTAINTY_METHODS = ("none", "laplace", "mcmc")
 REFLECTANCE_INCIDENCES = tuple(range(0, 90, 10))
 # Incidences (deg) of the reflectance line of the printed summary.
 SUMMARY_INCIDENCES = (0.0, 30.0, 60.0)
+FILE_HELP = ("the measurement file: brdfjax .csv, NIST PTFE .csv, J&C RT-300S .xls or "
+             "Zemax .bsdf")
+SEED_HELP = ("seeds the genetic search, the random starts and the uncertainty's draws: the "
+             "same seed gives the same result (default 0)")
 
 
 def register(subparsers) -> None:
     p = subparsers.add_parser("fit", help="fit the model to a measurement file",
                               description="Fit kb, kr, a, b, kd by minimising E of Eq. (6).")
-    p.add_argument("file")
+    p.add_argument("file", help=FILE_HELP)
     p.add_argument("--method", choices=("hybrid", "ga", "lm"), default="hybrid",
                    help="hybrid: genetic search then Levenberg-Marquardt (default)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help=SEED_HELP)
     group = p.add_mutually_exclusive_group()
     group.add_argument("--train-incidence", type=angles, metavar="DEG",
                        help="fit on these incidences only; the others are held out")
@@ -65,8 +70,8 @@ def register(subparsers) -> None:
     p = subparsers.add_parser("compare", help="GA vs gradient vs scipy on one file",
                               description="Run time against error of each fitting method "
                                           "on the same data, in one process.")
-    p.add_argument("file")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("file", help=FILE_HELP)
+    p.add_argument("--seed", type=int, default=0, help=SEED_HELP)
     p.add_argument("--repeats", type=int, default=3, help="timed runs per method")
     add_reader_options(p)
     p.set_defaults(run=run_compare)
@@ -111,14 +116,44 @@ def run_fit(args) -> None:
 
     if args.plot_corner and args.uncertainty == "none":
         raise ValueError("--plot-corner needs --uncertainty laplace or mcmc")
+    check_writable({"--json": args.json, "--plot": args.plot, "--plot-3d": args.plot_3d,
+                    "--plot-corner": args.plot_corner,
+                    "--chain": args.chain if args.uncertainty == "mcmc" else None})
     data = load(args.file, **reader_options(args))
     result = fit(data, args.method, seed=args.seed, validate_incidences=held_out(data, args),
                  bounds=make_bounds(parse_bounds(args.bound)))
     print(summary(result, data.name))
+    if result.status == "failed":
+        result = dataclasses.replace(result, message=failure_reason(data))
+        if args.json:
+            from brdfjax.formats import write_atomically
+
+            write_atomically(args.json, json.dumps(result.to_dict(), indent=2) + "\n")
+        raise ValueError(f"{args.file}: the fit failed: {result.message}")
     uncertainty = estimate_uncertainty(result, data, args)
     if uncertainty is not None:
         print(uncertainty.table())
     write_outputs(result, data, args, uncertainty)
+
+
+def failure_reason(data) -> str:
+    """Why a fit of ``data`` found no finite E of Eq. (6), in words a user can act on."""
+    from brdfjax.objective import targets
+
+    target, weight = targets(data)
+    with np.errstate(over="ignore", invalid="ignore"):
+        scale = np.sum(weight * target**2)  # the denominator of Eq. (6)
+    if not np.isfinite(scale):
+        k = int(np.argmax(np.where(np.isfinite(target), np.abs(target), np.inf)))
+        where = ", ".join(f"{name} {np.degrees(angle[k]):g}" for name, angle in
+                          (("theta_i", data.theta_i), ("theta_r", data.theta_r),
+                           ("phi_r", data.phi_r)))
+        return (f"E of Eq. (6) divides by the sum of the squared measurements, which "
+                f"overflows: brdf = {data.brdf[k]:.4g} 1/sr at {where} deg is far too large "
+                "(a corrupt value or a wrong unit?); correct or remove that point")
+    return ("no Levenberg-Marquardt start reached a finite E of Eq. (6): the model "
+            "overflowed or gave NaN wherever it was tried; check the data for extreme "
+            "values, or narrow the search box with --bound")
 
 
 def estimate_uncertainty(result, data, args):
@@ -227,10 +262,30 @@ def summary(result, name: str) -> str:
     return "\n".join(lines)
 
 
+def compilations(work):
+    """``work()``'s result, and how many functions XLA compiled for it (cache misses)."""
+    import jax.monitoring
+
+    misses = [0]
+
+    def listen(event, **_):
+        if event == "/jax/compilation_cache/compile_requests_use_cache":
+            misses[0] += 1
+        elif event == "/jax/compilation_cache/cache_hits":
+            misses[0] -= 1
+
+    jax.monitoring.register_event_listener(listen)
+    try:
+        return work(), misses[0]
+    finally:
+        jax.monitoring.unregister_event_listener(listen)
+
+
 def run_demo(args) -> None:
+    check_writable(folders={"--out": args.out})
     from brdfjax.cache import enable
 
-    enable()
+    cache = enable()
     from brdfjax.fitting import fit
     from brdfjax.formats import load, replace_atomically
     from brdfjax.hemispherical import energy_warning, reflectance
@@ -248,7 +303,7 @@ def run_demo(args) -> None:
     data = load(path)
     print(f"\nFit of {path.name} (SYNTHETIC stand-in: the paper's data are not published), "
           "on 10/30/45/60 deg, validated on 21/52 deg as in the paper")
-    result = fit(data, validate_incidences=[21, 52])
+    result, compiled = compilations(lambda: fit(data, validate_incidences=[21, 52]))
     paper = PAPER_SAMPLES["white_paint"]
     print(f"  {'':>3} {'fitted':>12} {'paper':>12}")
     for key in paper._fields:
@@ -259,7 +314,9 @@ def run_demo(args) -> None:
     rho0 = float(reflectance(result.params, 0.0))
     print(f"  rho(0 deg)   {100 * rho0:8.2f} %   paper 73.4 % (integrating sphere 79.6 %)")
     print(f"  status {result.status}; fit took {1e3 * result.timings['total']:.0f} ms "
-          "(first call includes compilation)")
+          + (f"(including {compiled} XLA compilations, which later runs load from "
+             f"{cache / 'xla'})" if compiled else
+             "(its compiled code loaded from the cache)"))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     replace_atomically(out / "demo_fit.png", lambda p: plot_fit(
