@@ -196,3 +196,18 @@ def test_demo_says_whether_it_compiled():
     assert compilations(work)[1] == 1
     jax.clear_caches()  # the in-memory cache gone: the next call reads the disk cache
     assert compilations(work)[1] == 0
+
+
+def test_bound_notes_explain_the_kb_b_trade_and_hint_only_where_widening_helps():
+    from brdfjax.commands.fitting import bound_notes
+
+    names = ("kb", "kr", "a", "b", "kd")
+    trade, = bound_notes(names, (1e-14, 0.2, 0.05, 32.9, 0.01), {"kb": "lower"})
+    assert "product" in trade and "--bound" not in trade and "kb exp(b) = 1.94" in trade
+    absent = bound_notes(names, (1e-14, 0.2, 0.5, -3.0, 1e-8), {"kb": "lower", "kd": "lower"})
+    assert all("cannot lower E" in text for text in absent)
+    wider = bound_notes(names, (5.0, 100.0, 0.5, -150.0, 0.1), {"kr": "upper", "b": "lower"})
+    assert all("--bound" in text for text in wider)
+    # keyed by names: a model without b gets no degeneracy note
+    other, = bound_notes(("kb", "roughness"), (1e-14, 0.3), {"kb": "lower"})
+    assert "product" not in other
