@@ -18,6 +18,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from brdfjax.angles import check_radians
 from brdfjax.cache import stage
 from brdfjax.geometry import PAPER_CONSTANTS, ShadowingConstants, scene
 from brdfjax.model import array_module, as_vector, evaluate
@@ -80,6 +81,7 @@ def reflectance(params, theta_i, constants: ShadowingConstants = PAPER_CONSTANTS
         rho with the shape of ``theta_i``. Values above 1 violate energy conservation:
         see `energy_warning`.
     """
+    check_radians(theta_i=theta_i)
     xp = array_module(theta_i)
     theta_i = xp.asarray(theta_i)
     if not xp.issubdtype(theta_i.dtype, xp.floating):  # float32 angles stay float32

@@ -20,6 +20,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from brdfjax.angles import check_radians
 from brdfjax.geometry import PAPER_CONSTANTS, Scene, ShadowingConstants, scene
 
 PARAMETER_NAMES = ("kb", "kr", "a", "b", "kd")
@@ -123,10 +124,12 @@ def brdf(params, theta_i, theta_r, phi_r,
     Returns:
         f_r in 1/sr, finite with finite gradients on the whole hemisphere.
     """
+    check_radians(("phi_r",), theta_i=theta_i, theta_r=theta_r, phi_r=phi_r)
     return evaluate(params, scene(theta_i, theta_r, phi_r, constants))
 
 
 def projected_brdf(params, theta_i, theta_r, phi_r,
                    constants: ShadowingConstants = PAPER_CONSTANTS) -> jax.Array:
     """``f_r cos(theta_r)``, the quantity fitted in Eq. (6)."""
+    check_radians(("phi_r",), theta_i=theta_i, theta_r=theta_r, phi_r=phi_r)
     return evaluate_projected(params, scene(theta_i, theta_r, phi_r, constants))
