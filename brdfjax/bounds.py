@@ -10,7 +10,7 @@ Why these defaults: the paper's five samples span kb 0.003-5.7, kr 0.48-16, a 0.
 b -59 to -18, kd 0.07-2.3. Real black coatings push the fit into a degeneracy where
 ``kb exp(b (1 - cos g)^a)`` trades a tiny kb (down to 1e-12) against a positive b (up to
 +35). Searched linearly, such ranges hide the basin from a global search; in log10 it is
-found on every real run tried (``FIELD-NOTES.md``). So kb spans 1e-14..1e3 in log10, kr
+found on every real run tried (linear: E 0.81, not 0.006). So kb spans 1e-14..1e3 in log10, kr
 and a 1e-2..1e2, kd 1e-8..1e2. b takes either sign and matters from about 0.1 up
 (it multiplies ``(1 - cos g)^a <= 1`` in an exponent): it spans -150..80 on an asinh
 scale, linear near zero and logarithmic beyond 1. Searched linearly, |b| < 0.3 would be
