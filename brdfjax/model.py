@@ -24,6 +24,7 @@ from brdfjax.angles import check_radians
 from brdfjax.geometry import PAPER_CONSTANTS, Scene, ShadowingConstants, scene
 
 PARAMETER_NAMES = ("kb", "kr", "a", "b", "kd")
+"""The parameters' names, in the order of every array, file and table."""
 
 
 class Params(NamedTuple):
@@ -57,6 +58,7 @@ PAPER_SAMPLES = {
     "forged_steel": Params(kb=0.072, kr=16.125, a=0.959, b=-29.917, kd=0.081),
     "polyimide": Params(kb=5.439, kr=3.257, a=0.495, b=-23.098, kd=2.267),
 }
+"""The paper's fitted `Params` of its five samples (Section 4, 1.06 um), by sample name."""
 PAPER_ERRORS_PERCENT = {"white_paint": 4.17, "cement": 5.98, "khaki_paint": 0.69,
                         "forged_steel": 0.95, "polyimide": 10.1}
 
