@@ -15,7 +15,7 @@ bench: $(VENV)/.installed-bench
 	$(BIN)/python benchmarks/run_all.py
 
 lint: $(VENV)/.installed-test
-	$(BIN)/ruff check brdfjax tests benchmarks scripts
+	$(BIN)/ruff check brdfjax tests benchmarks scripts docs
 
 synthetic: $(VENV)/.installed
 	$(BIN)/python scripts/make_synthetic.py

@@ -33,7 +33,7 @@ def test_the_site_builds_strictly_with_every_name_command_and_notebook(tmp_path)
     site = tmp_path / "site"
     done = subprocess.run(
         [sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(site)],
-        cwd=REPO, capture_output=True, text=True, timeout=110,
+        cwd=REPO, capture_output=True, text=True, timeout=110, check=False,
         env={**os.environ, "BRDFJAX_DOCS_EXECUTE": "false", "NO_MKDOCS_2_WARNING": "1"})
     assert done.returncode == 0, done.stderr[-3000:]
     api = (site / "api" / "index.html").read_text()
