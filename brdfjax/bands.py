@@ -16,6 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from brdfjax.angles import check_degrees
 from brdfjax.cache import stage
 from brdfjax.hemispherical import reflectance
 from brdfjax.model import evaluate_projected
@@ -114,6 +115,7 @@ def curve_bands(samples, incidences_deg, *, count: int = 361, draws: int = CURVE
         ``{incidence: CurveBand}``, keyed by the incidences as floats (the form
         `brdfjax.plot.plot_fit` takes as ``bands``).
     """
+    check_degrees(incidences_deg=incidences_deg)
     incidences = [float(x) for x in np.atleast_1d(incidences_deg)]
     scans = [curve_angles(deg, count) for deg in incidences]
     angles = [np.concatenate([scan[0][k] for scan in scans]) for k in range(3)]
@@ -145,6 +147,7 @@ def reflectance_bands(samples, theta_i_deg, *, draws: int = REFLECTANCE_DRAWS, s
     Returns:
         `ReflectanceBands`.
     """
+    check_degrees(theta_i_deg=theta_i_deg)
     samples = subsample(samples, draws, seed)
     theta = np.atleast_1d(np.asarray(theta_i_deg, dtype=float))
     values = np.asarray(_reflectances(jnp.asarray(samples), jnp.radians(theta),

@@ -1,8 +1,11 @@
 """The ``brdfjax`` command line: one sub-command per task, each in `brdfjax.commands`.
 
 User errors (bad data, bad options, missing files, instrument faults) become one line on
-stderr and exit code 1; usage errors exit 2 (argparse). Nothing heavy is imported until a
-command runs, so ``--help`` is instant.
+stderr and exit code 1; usage errors exit 2 (argparse). Warnings raised while a command runs
+(NumPy's overflow ``RuntimeWarning``, JAX's ``UserWarning``) never reach the user raw: each
+distinct one becomes a line ``brdfjax CMD: warning: ...`` after a command that succeeded,
+and is dropped after one that failed, whose error says why. Nothing heavy is imported until
+a command runs, so ``--help`` is instant.
 """
 
 from __future__ import annotations
@@ -10,6 +13,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+import warnings
 
 # Each module defines ``register(subparsers)``, adding its commands with a ``run`` default.
 COMMAND_MODULES = (
@@ -34,18 +38,39 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+# Warnings for developers, not for someone running a command.
+SILENT_WARNINGS = (DeprecationWarning, PendingDeprecationWarning, ImportWarning,
+                   ResourceWarning, FutureWarning)
+
+
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     from brdfjax.measurements import DataError
 
-    try:
-        return args.run(args) or 0
-    except (DataError, ValueError, OSError) as problem:
-        print(f"brdfjax {args.command}: error: {problem}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        print(f"brdfjax {args.command}: interrupted", file=sys.stderr)
-        return 130
+    caught = {}
+
+    def keep(message, category, filename, lineno, file=None, line=None):
+        if not issubclass(category, SILENT_WARNINGS):  # one line per distinct text
+            caught.setdefault(str(message).splitlines()[0], category)
+
+    with warnings.catch_warnings():
+        # "always": the filters the caller had (pytest's "error", say) must not turn a
+        # numerical warning deep in a fit into an exception.
+        warnings.simplefilter("always")
+        warnings.showwarning = keep
+        try:
+            code = args.run(args) or 0
+        except (DataError, ValueError, OSError) as problem:
+            print(f"brdfjax {args.command}: error: {problem}", file=sys.stderr)
+            return 1
+        except KeyboardInterrupt:
+            print(f"brdfjax {args.command}: interrupted", file=sys.stderr)
+            return 130
+    if code == 0:
+        for text, category in caught.items():
+            print(f"brdfjax {args.command}: warning: {text} ({category.__name__})",
+                  file=sys.stderr)
+    return code
 
 
 if __name__ == "__main__":

@@ -89,7 +89,7 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
            precision: str = "float32") -> EvolveResult:
     """Run the genetic algorithm on one problem, as ``islands`` independent populations.
 
-    Real data have several basins (FIELD-NOTES.md; the RT-300S "singularity" runs): one
+    Real data have several basins (the RT-300S black coatings: the kb-b valley and others): one
     population converges into whichever it finds first, independent islands into several,
     and `brdfjax.polish.polish_population` polishes the best of each. The search runs in
     ``precision`` (float32 evaluates a population about twice as fast; it only has to find

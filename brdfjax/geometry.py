@@ -1,6 +1,6 @@
 """Measurement geometry: everything in the model that does not depend on the parameters.
 
-Conventions (``MODEL.md``): directions point away from the surface, ``z`` is the mean
+Conventions (``docs/model.md``): directions point away from the surface, ``z`` is the mean
 surface normal, the incident direction is ``w_i = (sin ti, 0, cos ti)`` and the reflected
 one ``w_r = (sin tr cos pr, sin tr sin pr, cos tr)``, so ``pr = pi`` is the specular half
 of the plane of incidence and ``pr = 0`` the source (back-scatter) side.
@@ -12,7 +12,7 @@ the facet angle ``alpha``, the local incidence angle ``gamma`` and the whole sha
 factor ``G / cos tr`` are fixed by the geometry. A `Scene` holds them, computed once per
 measurement set; evaluating a parameter vector then costs two exponentials per point.
 
-Where the paper's formulas break (``MODEL.md``, "Where the formulas break"):
+Where the paper's formulas break (``docs/model.md``, "Where the formulas break"):
 
 1. Specular direction: ``h = 0`` and the tangents of Eq. (4) are 0/0. The in-plane limits
    are used: both azimuth cosines squared are 1 and ``tan g' = tan(ti) / 2``.

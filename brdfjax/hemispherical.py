@@ -22,6 +22,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from brdfjax.angles import check_radians
 from brdfjax.cache import stage
 from brdfjax.model import evaluate
 from brdfjax.models import Model, get
@@ -104,6 +105,7 @@ def reflectance(params, theta_i, constants=None, radial_nodes: int = RADIAL_NODE
         rho with the shape of ``theta_i``. Values above 1 violate energy conservation:
         see `energy_warning`.
     """
+    check_radians(theta_i=theta_i)
     xp = array_module(theta_i)
     theta_i = xp.asarray(theta_i)
     if not xp.issubdtype(theta_i.dtype, xp.floating):  # float32 angles stay float32

@@ -122,6 +122,13 @@ def laplace_approximation(data: Measurements, fit, *, draws: int = 2000, seed: i
     warning = chi2_warning(center, post)
     if warning:
         messages.append(warning)
+    if post.ndim > 5:  # flagged, not untrustworthy: the parameters' intervals still hold
+        lower, upper = np.asarray(post.lower)[5:], np.asarray(post.upper)[5:]
+        for k in np.flatnonzero(_at_edge(center[5:], lower, upper)):
+            side = "lower" if center[5 + k] < (lower[k] + upper[k]) / 2 else "upper"
+            messages.append(f"the noise scale {post.names[5 + k]} sits at the {side} edge of "
+                            f"its prior ({10.0 ** center[5 + k]:.3g}): the data do not "
+                            "determine it, and it has no interval")
     for text in messages:
         warnings.warn(text, UncertaintyWarning, stacklevel=2)
     # The prior is zero outside its box: intervals end there, and the draws come from the

@@ -1,7 +1,7 @@
 """Measured BRDF data: the `Measurements` type and the checks every reader applies.
 
 Host-side only (numpy): readers build a `Measurements`, the fitter turns it into arrays.
-Angles are stored in radians with the project's convention (``MODEL.md``): ``phi_r = pi``
+Angles are stored in radians with the project's convention (``docs/model.md``): ``phi_r = pi``
 is the specular half of the plane of incidence, ``phi_r = 0`` the source side.
 """
 

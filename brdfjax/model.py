@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import jax
 
+from brdfjax.angles import check_radians
 from brdfjax.geometry import is_in_plane
 from brdfjax.models import get
 from brdfjax.models.base import array_module, as_vector
@@ -53,6 +54,7 @@ def evaluate_projected(params, geometry, model=FIVE) -> jax.Array:
 
 
 def _geometry(model, theta_i, theta_r, phi_r):
+    check_radians(("phi_r",), theta_i=theta_i, theta_r=theta_r, phi_r=phi_r)
     try:
         in_plane = is_in_plane(phi_r)
     except jax.errors.TracerArrayConversionError:  # traced: take the general path

@@ -590,7 +590,8 @@ def _mcmc_result(sampler, post: Posterior, tau, chain_path, timings) -> Uncertai
             f"the chain did not converge: {steps} steps is "
             f"{steps / np.max(tau):.3g} autocorrelation times (max tau {np.max(tau):.3g}), "
             f"fewer than {AUTOCORRELATION_LENGTHS}; the intervals are unreliable. Run longer "
-            "(raise max_steps" + (f"; the chain in {chain_path} resumes)" if chain_path else ")"))
+            "(raise max_steps, the CLI's --mcmc-steps"
+            + (f"; the chain in {chain_path} resumes)" if chain_path else ")"))
     warning = chi2_warning(np.median(flat, axis=0), post)
     if warning:
         messages.append(warning)

@@ -82,8 +82,8 @@ class Comparison:
 
     def table(self) -> str:
         """The ranked table a user reads."""
-        lines = [f"  {'model':<17} {'cv_error (%)':>12} {'E all (%)':>10} {'AIC':>10} "
-                 f"{'BIC':>10}  rho(0/30/60 deg)        at bounds"]
+        lines = [(f"  {'model':<17} {'cv_error (%)':>12} {'E all (%)':>10} {'AIC':>10} "
+                 f"{'BIC':>10}  rho(0/30/60 deg)        at bounds")]
         for name in self.ranking:
             s = next(x for x in self.scores if x.name == name)
             rho = "/".join(f"{v:.3f}" for v in s.reflectance.values())

@@ -225,3 +225,30 @@ def test_dask_cluster_gives_the_local_results(reference, catalogue, environment,
                                   cluster.scheduler_address)[3:])
     assert code == 1 and "brdf is nan" in capsys.readouterr().err
     assert out.read_text() == reference[0]
+
+
+def test_a_rerun_never_reads_its_own_outputs_and_draws_one_bar(tmp_path, capsys):
+    """--out and --json inside the input folder: the second run has nothing to do."""
+    from brdfjax.cli import main
+
+    for seed in range(2):
+        save(synthetic(seed, points=40), tmp_path / f"sample_{seed}.csv")
+    out = tmp_path / "results.csv"
+    command = ["batch", str(tmp_path), "--out", str(out), "--json", str(tmp_path / "json"),
+               *CLI_SMALL]
+    assert main(command) == 0
+    first = capsys.readouterr().err
+    assert first.count("100%") == 1, first  # drawn once, by close()
+    assert first.index("device(s)") < first.index("%|")  # said before the bar opened
+    assert [r["file"] for r in rows(out.read_text())] == [
+        str(tmp_path / "sample_0.csv"), str(tmp_path / "sample_1.csv")]
+    (tmp_path / ".results.a1b2c3d4.csv").write_text("")  # the temporary of a cut-short write
+    (tmp_path / "old_results.csv").write_text(out.read_text())  # another batch's results
+    written = out.read_text()
+    assert main(command) == 0
+    second = capsys.readouterr().err
+    assert "2 of 2 inputs already done; nothing left to fit" in second
+    assert "%|" not in second and "device(s)" not in second  # no bars, no JAX start-up
+    assert out.read_text() == written
+    with pytest.raises(ValueError, match="is this batch's output"):
+        expand([str(out)], outputs=[str(out)])

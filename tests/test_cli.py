@@ -1,6 +1,7 @@
 """The command line: help everywhere, outputs people read, files people keep."""
 
 import json
+import warnings
 
 import numpy as np
 import pytest
@@ -88,6 +89,7 @@ def test_demo_reproduces_the_papers_white_paint(tmp_path, capsys):
     assert "white_paint      0.7341" in out  # Eq. (9) with the paper's parameters: 73.4 %
     assert "polyimide" in out and "not energy-conserving" in out
     assert "E (held out)" in out and "status converged" in out
+    assert "XLA compilations" in out or "compiled code loaded from the cache" in out
     assert (tmp_path / "demo_fit.png").exists() and (tmp_path / "demo_hemisphere.png").exists()
 
 
@@ -96,3 +98,116 @@ def test_fit_summary_flags_a_fit_that_creates_energy(capsys):
     out = capsys.readouterr().out
     assert "reflectance rho(0, 30, 60 deg) = 7.6" in out
     assert "warning: reflectance up to 7.6" in out and "not physical" in out
+
+
+def test_every_argument_has_help():
+    import argparse
+
+    def missing(parser, path):
+        for action in parser._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                for name, sub in action.choices.items():
+                    yield from missing(sub, [*path, name])
+            elif action.help is None:
+                yield " ".join(path) + " " + (action.option_strings or [action.dest])[0]
+
+    assert list(missing(build_parser(), ["brdfjax"])) == []
+
+
+def test_a_failed_fit_exits_1_with_the_reason_and_no_raw_warning(tmp_path, capsys):
+    lines = (DATA / "synthetic" / "white_paint.csv").read_text().splitlines()
+    first = next(k for k, line in enumerate(lines) if line[:1].isdigit())
+    cells = lines[first].split(",")
+    lines[first] = ",".join([*cells[:3], "1e308", *cells[4:]])
+    path = tmp_path / "huge.csv"
+    path.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "fit.json"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a warning that escaped main would raise here
+        code = main(["fit", str(path), "--uncertainty", "none", "--json", str(out)])
+    assert code == 1
+    captured = capsys.readouterr()
+    assert "status failed" in captured.out
+    assert "the fit failed" in captured.err and "brdf = 1e+308" in captured.err
+    assert "Warning" not in captured.err
+    record = json.loads(out.read_text())
+    assert record["status"] == "failed" and "brdf = 1e+308" in record["message"]
+
+
+def test_numerical_warnings_become_one_line_each(monkeypatch, capsys):
+    import brdfjax.commands.data as commands
+
+    def noisy(args):
+        np.float64(1e308) ** 2  # RuntimeWarning: overflow, twice
+        np.float64(1e308) ** 2
+        warnings.warn("old", DeprecationWarning)  # not for users
+
+    monkeypatch.setattr(commands, "run_info", noisy)
+    assert main(["info", "x.csv"]) == 0
+    err = capsys.readouterr().err
+    assert err == "brdfjax info: warning: overflow encountered in scalar power (RuntimeWarning)\n"
+
+
+@pytest.mark.parametrize("command", [
+    ["fit", "{data}", "--plot", "{missing}/fit.png"],
+    ["fit", "{data}", "--json", "{tmp}"],
+    ["fit", "{data}", "--plot-3d", "{file}/3d.png"],
+    ["fit", "{data}", "--uncertainty", "mcmc", "--chain", "{missing}/chain.h5"],
+    ["convert", "{data}", "{missing}/out.csv"],
+    ["batch", "{data}", "--out", "{missing}/results.csv"],
+    ["batch", "{data}", "--out", "{tmp}/results.csv", "--json", "{file}/json"],
+    ["demo", "--out", "{file}"],
+    ["measure", "--port", "/dev/null", "--incidence", "10", "--out", "{missing}/m.csv"],
+], ids=lambda command: " ".join(command[:1] + command[2:3]))
+def test_an_unwritable_output_fails_before_any_work(command, tmp_path, capsys, monkeypatch):
+    import brdfjax.formats
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("work started before the outputs were checked")
+
+    monkeypatch.setattr(brdfjax.formats, "load", no_work)
+    (tmp_path / "plain").write_text("a file, not a folder")
+    places = {"data": str(DATA / "synthetic" / "white_paint.csv"), "tmp": str(tmp_path),
+              "missing": str(tmp_path / "missing"), "file": str(tmp_path / "plain")}
+    argv = [part.format(**places) for part in command]
+    assert main(argv) == 1
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    given = [part for part in argv if str(tmp_path) in part][-1]  # the bad one comes last
+    assert captured.err.startswith(f"brdfjax {argv[0]}: error: ") and given in captured.err
+    assert ".brdfjax" not in captured.err and list(tmp_path.glob(".*")) == []
+
+
+def test_demo_says_whether_it_compiled():
+    """`compilations` counts what XLA compiled, not what came from the on-disk cache."""
+    import random
+
+    import jax
+
+    from brdfjax.cache import enable
+    from brdfjax.commands.fitting import compilations
+
+    enable()
+    factor = random.random()  # a function no earlier run has compiled
+
+    def work():
+        return jax.jit(lambda x: x * factor + 1)(np.arange(7.0))
+
+    assert compilations(work)[1] == 1
+    jax.clear_caches()  # the in-memory cache gone: the next call reads the disk cache
+    assert compilations(work)[1] == 0
+
+
+def test_bound_notes_explain_the_kb_b_trade_and_hint_only_where_widening_helps():
+    from brdfjax.commands.fitting import bound_notes
+
+    names = ("kb", "kr", "a", "b", "kd")
+    trade, = bound_notes(names, (1e-14, 0.2, 0.05, 32.9, 0.01), {"kb": "lower"})
+    assert "product" in trade and "--bound" not in trade and "kb exp(b) = 1.94" in trade
+    absent = bound_notes(names, (1e-14, 0.2, 0.5, -3.0, 1e-8), {"kb": "lower", "kd": "lower"})
+    assert all("cannot lower E" in text for text in absent)
+    wider = bound_notes(names, (5.0, 100.0, 0.5, -150.0, 0.1), {"kr": "upper", "b": "lower"})
+    assert all("--bound" in text for text in wider)
+    # keyed by names: a model without b gets no degeneracy note
+    other, = bound_notes(("kb", "roughness"), (1e-14, 0.3), {"kb": "lower"})
+    assert "product" not in other

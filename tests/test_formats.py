@@ -1,12 +1,16 @@
 """brdfjax's CSV format, and the message and exit code of every kind of bad input."""
 
+import os
 import re
+import stat
+from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import DATA
 
 from brdfjax.cli import main
-from brdfjax.formats import load, save
+from brdfjax.formats import load, replace_atomically, save, write_atomically
 from brdfjax.measurements import DataError, Measurements
 from brdfjax.synthetic import paper_sample
 
@@ -96,3 +100,42 @@ def test_held_out_validation_needs_two_incidences(tmp_path, capsys):
 def test_measurements_reject_mismatched_lengths():
     with pytest.raises(ValueError, match="theta_r has 2 values"):
         Measurements([0.1, 0.2, 0.3], [0.1, 0.2], [0, 0, 0], [1, 1, 1])
+
+
+@pytest.fixture
+def umask():
+    """Set the process umask for one test, and put the old one back."""
+    old = os.umask(0o022)
+    yield os.umask
+    os.umask(old)
+
+
+@pytest.mark.parametrize(("mask", "mode"), [(0o022, 0o644), (0o077, 0o600), (0o002, 0o664)])
+def test_outputs_get_the_mode_the_umask_gives(tmp_path, umask, mask, mode):
+    umask(mask)
+    write_atomically(tmp_path / "new.json", "{}\n")
+    replace_atomically(tmp_path / "new.png", lambda path: Path(path).write_bytes(b"png"))
+    main(["convert", str(DATA / "synthetic" / "cement.csv"), str(tmp_path / "c.bsdf")])
+    for name in ("new.json", "new.png", "c.bsdf"):
+        assert stat.S_IMODE((tmp_path / name).stat().st_mode) == mode, name
+
+
+def test_a_replaced_file_keeps_its_mode_and_a_failed_write_leaves_nothing(tmp_path, umask):
+    target = tmp_path / "kept.csv"
+    target.write_text("old\n")
+    target.chmod(0o640)
+    write_atomically(target, "new\n")
+    assert target.read_text() == "new\n" and stat.S_IMODE(target.stat().st_mode) == 0o640
+
+    def fails(path):
+        Path(path).write_text("half")
+        raise RuntimeError("disk full")
+
+    with pytest.raises(RuntimeError):
+        replace_atomically(target, fails)
+    with pytest.raises(RuntimeError):
+        replace_atomically(tmp_path / "never.csv", fails)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["kept.csv"]
+    assert target.read_text() == "new\n"
+    with pytest.raises(OSError, match=f"cannot write {tmp_path / 'missing' / 'x.png'}: "):
+        replace_atomically(tmp_path / "missing" / "x.png", fails)

@@ -25,7 +25,11 @@ UAZ_DERIVED = SHARED / "uaz-loft-rt300s" / "derived" / "inplane_brdf.csv"
 PTFE_DERIVED = SHARED / "nist-germer-ptfe" / "derived" / "PTFE_inplane.csv"
 PTFE_RANDOM = SHARED / "nist-germer-ptfe" / "PTFE.data.random.csv"
 
-needs_shared = pytest.mark.skipif(not SHARED.is_dir(), reason="../shared reference data absent")
+needs_shared = pytest.mark.skipif(
+    not SHARED.is_dir(),
+    reason="needs ../shared/data/real: the derived in-plane CSVs made upstream from the same "
+           "raw files (not shipped with the repository), against which these tests check the "
+           "readers")
 
 # Which .bsdf of the authors holds which material of the derived CSV.
 BSDF_MATERIALS = {"AnoBlackEC1onAlum": "AnoBlack_EC1_on_Al6061",

@@ -12,7 +12,7 @@ INCIDENCES = np.radians([0.0, 30.0, 60.0, 80.0, 90.0])
 def test_white_paint_at_normal_incidence_is_the_papers_73_4_percent():
     rho = float(reflectance(PAPER_SAMPLES["white_paint"], 0.0))
     assert round(rho, 3) == 0.734
-    assert rho == pytest.approx(0.73411, abs=1e-5)  # FIELD-NOTES: independent transcription
+    assert rho == pytest.approx(0.73411, abs=1e-5)  # an independent transcription's value
 
 
 @pytest.mark.parametrize("name", list(PAPER_SAMPLES))

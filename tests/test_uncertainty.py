@@ -286,7 +286,10 @@ def test_chain_resumes_from_its_file(white_paint, white_fit, white_laplace, tmp_
 
 def test_noise_model_is_inferred_by_both_methods(white_paint, white_fit):
     data = dataclasses.replace(white_paint, sigma=None)
-    approximation = laplace_approximation(data, white_fit)
+    with pytest.warns(UncertaintyWarning, match="sigma_abs sits at the lower edge of its prior"):
+        approximation = laplace_approximation(data, white_fit)
+    assert any("sigma_abs sits at the lower edge" in text for text in approximation.warnings)
+    assert "warning: the noise scale sigma_abs" in approximation.table()
     assert approximation.noise["sigma_rel"]["median"] == pytest.approx(0.025, rel=0.1)
     low, high = approximation.noise["sigma_rel"]["ci95"]
     assert low < 0.025 < high

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import os
+from pathlib import Path
 
 import numpy as np
 
@@ -68,3 +70,54 @@ def add_reader_options(parser) -> None:
                                         "blank_*.xls beside the file)")
     parser.add_argument("--wavelength", type=float, metavar="NM",
                         help="wavelength to read from multi-wavelength files (NIST, Zemax)")
+
+
+def check_writable(files: dict | None = None, folders: dict | None = None) -> None:
+    """Fail now, before any work, if an output cannot be written where the user asked.
+
+    Each file's folder must exist and take a new file (tried for real: permission bits
+    alone say nothing to root or on a read-only mount); a folder must be a folder or be
+    creatable under the nearest existing one. Errors name the option and the path as the
+    user gave them.
+
+    Args:
+        files: ``{"--plot": "fit.png", "output": ...}``; None values (options not given)
+            are skipped.
+        folders: the same for output folders (created later if missing).
+    """
+    for label, given in (files or {}).items():
+        if given is None:
+            continue
+        path = Path(given)
+        if path.is_dir():
+            raise ValueError(f"{label} {given}: is a folder; give a file name")
+        _check_folder(label, given, path.parent)
+        if path.exists() and not os.access(path, os.W_OK):
+            raise ValueError(f"{label} {given}: the file exists and is not writable")
+    for label, given in (folders or {}).items():
+        if given is None:
+            continue
+        path = Path(given)
+        if path.exists() and not path.is_dir():
+            raise ValueError(f"{label} {given}: exists and is not a folder")
+        existing = path
+        while not existing.exists() and existing != existing.parent:
+            existing = existing.parent
+        _check_folder(label, given, existing)
+
+
+def _check_folder(label: str, given, folder: Path) -> None:
+    """Raise if ``folder`` is missing, not a folder, or refuses a new file."""
+    if not folder.exists():
+        raise ValueError(f"{label} {given}: the folder {folder} does not exist")
+    if not folder.is_dir():
+        raise ValueError(f"{label} {given}: {folder} is not a folder")
+    probe = folder / f".brdfjax-write-test-{os.getpid()}"
+    try:
+        os.close(os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
+        os.unlink(probe)
+    except FileExistsError:
+        pass  # another run's probe: the folder takes files
+    except OSError as error:
+        raise ValueError(f"{label} {given}: cannot write in {folder} "
+                         f"({error.strerror})") from None

@@ -18,7 +18,7 @@ import os
 import sys
 from pathlib import Path
 
-from brdfjax.commands import add_reader_options, reader_options
+from brdfjax.commands import add_reader_options, check_writable, reader_options
 
 SUFFIXES = (".csv", ".xls", ".bsdf")
 SEARCH_OPTIONS = {"population_size": "genetic-search population",
@@ -61,16 +61,25 @@ def register(subparsers) -> None:
     p.set_defaults(run=run_batch)
 
 
-def expand(inputs) -> list[str]:
-    """The files named by files, directories and glob patterns, in order, once each."""
+def expand(inputs, outputs=()) -> list[str]:
+    """The files named by files, directories and glob patterns, in order, once each.
+
+    A directory or pattern never yields the batch's own outputs: the files and folders in
+    ``outputs`` (the results CSV, the JSON folder) and anything inside them, hidden files
+    (the temporaries of an atomic write cut short) and results CSVs of other batches (their
+    header is ``file,kb,...``). Naming an output itself as an input is an error.
+    """
+    outputs = [Path(p).resolve() for p in outputs if p is not None]
     files = []
     for item in inputs:
         if Path(item).is_dir():
-            found = sorted(str(p) for p in Path(item).iterdir() if _is_sample(p))
+            found = sorted(str(p) for p in Path(item).iterdir() if _is_sample(p, outputs))
         elif Path(item).is_file():
+            if _is_output(Path(item), outputs):
+                raise ValueError(f"{item}: is this batch's output, not an input")
             found = [item]
         elif glob.has_magic(item):
-            found = sorted(p for p in glob.glob(item) if _is_sample(Path(p)))
+            found = sorted(p for p in glob.glob(item) if _is_sample(Path(p), outputs))
         else:
             raise ValueError(f"{item}: no such file, directory or matching pattern")
         if not found:
@@ -79,10 +88,30 @@ def expand(inputs) -> list[str]:
     return list(dict.fromkeys(files))
 
 
-def _is_sample(path: Path) -> bool:
-    """A measurement file, and not an RT-300S blank (which is subtracted, not fitted)."""
+def _is_sample(path: Path, outputs=()) -> bool:
+    """A measurement file, not an RT-300S blank (which is subtracted, not fitted), and none
+    of the batch's outputs."""
     return (path.is_file() and path.suffix.lower() in SUFFIXES
-            and not (path.suffix.lower() == ".xls" and path.name.startswith("blank_")))
+            and not (path.suffix.lower() == ".xls" and path.name.startswith("blank_"))
+            and not path.name.startswith(".") and not _is_output(path, outputs)
+            and not _is_results(path))
+
+
+def _is_output(path: Path, outputs) -> bool:
+    resolved = path.resolve()
+    return any(resolved == out or out in resolved.parents for out in outputs)
+
+
+def _is_results(path: Path) -> bool:
+    """A results CSV written by ``brdfjax batch`` (judged by its header)."""
+    if path.suffix.lower() != ".csv":
+        return False
+    try:
+        with open(path, encoding="utf-8", errors="replace") as handle:
+            header = handle.readline().rstrip("\r\n")
+        return header.startswith("file,") and ",error,status,message,model" in header
+    except OSError:  # unreadable: the fit reports it
+        return False
 
 
 def read_results(path, columns) -> dict:
@@ -138,11 +167,12 @@ def run_batch(args) -> int:
     from brdfjax.commands.fitting import parse_bounds
     from brdfjax.models import get
 
+    check_writable({"--out": args.out}, {"--json": args.json})
     if args.chunk_size < 1:
         raise ValueError(f"--chunk-size {args.chunk_size}: give at least 1")
     model = get(args.model)
     columns = columns_of(model.names, bool(args.uncertainty))
-    files = expand(args.inputs)
+    files = expand(args.inputs, outputs=(args.out, args.json))
     names = [Path(f).stem for f in files]
     if args.json and len(set(names)) < len(names):
         clash = next(n for n in names if names.count(n) > 1)
@@ -156,7 +186,13 @@ def run_batch(args) -> int:
         Path(args.json).mkdir(parents=True, exist_ok=True)
     if rows:
         print(f"{args.out}: {len(files) - len(pending)} of {len(files)} inputs already done; "
-              f"fitting the other {len(pending)}", file=sys.stderr)
+              + (f"fitting the other {len(pending)}" if pending else "nothing left to fit"),
+              file=sys.stderr)
+    if not pending:
+        return _summary(rows, files, [])
+    if args.scheduler is None:  # said before the bar opens, so it is not drawn through it
+        devices = _local_devices()
+        print(f"fitting on {len(devices)} {devices[0].platform} device(s)", file=sys.stderr)
 
     progress = tqdm(total=len(pending), unit="file", desc="brdfjax batch", file=sys.stderr)
     unread = {}
@@ -173,13 +209,28 @@ def run_batch(args) -> int:
         rows.update({file: row(file, result, columns, model.name)
                      for file, result in batch.items()})
         write_results(args.out, rows, files, columns)
-        progress.update(len(batch))
+        if progress.n + len(batch) < progress.total:
+            progress.update(len(batch))
+        else:  # the last step is drawn once, by close(), not also by update()
+            progress.n = progress.total
 
     chunks = _chunks(pending, args, unread, model.names)
-    lost = _fit_chunks(chunks, args.scheduler, options, record)
-    record({})  # the last unreadable files, if no chunk came after them
-    progress.close()
+    try:
+        lost = _fit_chunks(chunks, args.scheduler, options, record)
+        record({})  # the last unreadable files, if no chunk came after them
+    finally:
+        progress.close()
     return _summary(rows, files, lost)
+
+
+def _local_devices() -> list:
+    """The JAX devices of a local batch, one per core on a CPU; caches on."""
+    from brdfjax.batch import use_every_core
+    from brdfjax.cache import enable
+
+    devices = use_every_core()
+    enable()
+    return devices
 
 
 def _chunks(pending, args, unread: dict, names):
@@ -214,12 +265,6 @@ def _fit_chunks(chunks, scheduler, options, record) -> list:
     from brdfjax.cluster import fit_chunk, fit_on_cluster
 
     if scheduler is None:
-        from brdfjax.batch import use_every_core
-        from brdfjax.cache import enable
-
-        devices = use_every_core()
-        enable()
-        print(f"fitting on {len(devices)} {devices[0].platform} device(s)", file=sys.stderr)
         for chunk in chunks:
             files, samples = zip(*chunk)
             record(dict(zip(files, fit_chunk(list(samples), options))))

@@ -8,6 +8,7 @@ from brdfjax.commands import (
     add_model_option,
     add_reader_options,
     angles,
+    check_writable,
     parameters,
     reader_options,
 )
@@ -42,13 +43,14 @@ def register(subparsers) -> None:
                               description="Read any supported file and write brdfjax CSV "
                                           "(.csv), Zemax tabular BSDF (.bsdf) or ASTM "
                                           "E1392 (.astm).")
-    p.add_argument("input")
-    p.add_argument("output")
+    p.add_argument("input", help="the file to read (any format `brdfjax fit` reads)")
+    p.add_argument("output", help="the file to write: .csv (brdfjax CSV), .bsdf (Zemax) "
+                                  "or .astm (ASTM E1392)")
     add_reader_options(p)
     p.set_defaults(run=run_convert)
 
     p = subparsers.add_parser("info", help="summary of a measurement file")
-    p.add_argument("file")
+    p.add_argument("file", help="the measurement file (any format `brdfjax fit` reads)")
     add_reader_options(p)
     p.set_defaults(run=run_info)
 
@@ -81,6 +83,7 @@ def run_reflectance(args) -> None:
 def run_convert(args) -> None:
     from brdfjax.formats import load, save
 
+    check_writable({"output": args.output})
     data = load(args.input, **reader_options(args))
     save(data, args.output)
     print(f"wrote {len(data)} points to {args.output}")

@@ -2,12 +2,19 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
 import numpy as np
 
-from brdfjax.commands import add_model_option, add_reader_options, angles, reader_options
+from brdfjax.commands import (
+    add_model_option,
+    add_reader_options,
+    angles,
+    check_writable,
+    reader_options,
+)
 
 DATA = Path(__file__).resolve().parents[2] / "data"
 UNCERTAINTY_METHODS = ("none", "laplace", "mcmc")
@@ -15,6 +22,10 @@ UNCERTAINTY_METHODS = ("none", "laplace", "mcmc")
 REFLECTANCE_INCIDENCES = tuple(range(0, 90, 10))
 # Incidences (deg) of the reflectance line of the printed summary.
 SUMMARY_INCIDENCES = (0.0, 30.0, 60.0)
+FILE_HELP = ("the measurement file: brdfjax .csv, NIST PTFE .csv, J&C RT-300S .xls or "
+             "Zemax .bsdf")
+SEED_HELP = ("seeds the genetic search, the random starts and the uncertainty's draws: the "
+             "same seed gives the same result (default 0)")
 
 
 def register(subparsers) -> None:
@@ -22,11 +33,11 @@ def register(subparsers) -> None:
                               description="Fit a model's parameters (kb, kr, a, b, kd of the "
                                           "paper's model by default) by minimising E of "
                                           "Eq. (6).")
-    p.add_argument("file")
+    p.add_argument("file", help=FILE_HELP)
     add_model_option(p, "the model to fit")
     p.add_argument("--method", choices=("hybrid", "ga", "lm"), default="hybrid",
                    help="hybrid: genetic search then Levenberg-Marquardt (default)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help=SEED_HELP)
     group = p.add_mutually_exclusive_group()
     group.add_argument("--train-incidence", type=angles, metavar="DEG",
                        help="fit on these incidences only; the others are held out")
@@ -68,9 +79,9 @@ def register(subparsers) -> None:
     p = subparsers.add_parser("compare", help="GA vs gradient vs scipy on one file",
                               description="Run time against error of each fitting method "
                                           "on the same data, in one process.")
-    p.add_argument("file")
+    p.add_argument("file", help=FILE_HELP)
     add_model_option(p, "the model to fit")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help=SEED_HELP)
     p.add_argument("--repeats", type=int, default=3, help="timed runs per method")
     add_reader_options(p)
     p.set_defaults(run=run_compare)
@@ -115,15 +126,45 @@ def run_fit(args) -> None:
 
     if args.plot_corner and args.uncertainty == "none":
         raise ValueError("--plot-corner needs --uncertainty laplace or mcmc")
+    check_writable({"--json": args.json, "--plot": args.plot, "--plot-3d": args.plot_3d,
+                    "--plot-corner": args.plot_corner,
+                    "--chain": args.chain if args.uncertainty == "mcmc" else None})
     data = load(args.file, **reader_options(args))
     result = fit(data, args.method, model=args.model, seed=args.seed,
                  validate_incidences=held_out(data, args),
                  bounds=make_bounds(parse_bounds(args.bound), model=args.model))
     print(summary(result, data.name))
+    if result.status == "failed":
+        result = dataclasses.replace(result, message=failure_reason(data))
+        if args.json:
+            from brdfjax.formats import write_atomically
+
+            write_atomically(args.json, json.dumps(result.to_dict(), indent=2) + "\n")
+        raise ValueError(f"{args.file}: the fit failed: {result.message}")
     uncertainty = estimate_uncertainty(result, data, args)
     if uncertainty is not None:
         print(uncertainty.table())
     write_outputs(result, data, args, uncertainty)
+
+
+def failure_reason(data) -> str:
+    """Why a fit of ``data`` found no finite E of Eq. (6), in words a user can act on."""
+    from brdfjax.objective import targets
+
+    target, weight = targets(data)
+    with np.errstate(over="ignore", invalid="ignore"):
+        scale = np.sum(weight * target**2)  # the denominator of Eq. (6)
+    if not np.isfinite(scale):
+        k = int(np.argmax(np.where(np.isfinite(target), np.abs(target), np.inf)))
+        where = ", ".join(f"{name} {np.degrees(angle[k]):g}" for name, angle in
+                          (("theta_i", data.theta_i), ("theta_r", data.theta_r),
+                           ("phi_r", data.phi_r)))
+        return (f"E of Eq. (6) divides by the sum of the squared measurements, which "
+                f"overflows: brdf = {data.brdf[k]:.4g} 1/sr at {where} deg is far too large "
+                "(a corrupt value or a wrong unit?); correct or remove that point")
+    return ("no Levenberg-Marquardt start reached a finite E of Eq. (6): the model "
+            "overflowed or gave NaN wherever it was tried; check the data for extreme "
+            "values, or narrow the search box with --bound")
 
 
 def estimate_uncertainty(result, data, args):
@@ -204,6 +245,7 @@ def write_outputs(result, data, args, uncertainty=None) -> None:
 
 def summary(result, name: str) -> str:
     """A readable table of a `brdfjax.fitting.FitResult`, with the reflectance of Eq. (9)."""
+    from brdfjax.bounds import to_unit
     from brdfjax.hemispherical import energy_warning, reflectance
 
     names = result.model.names
@@ -230,15 +272,79 @@ def summary(result, name: str) -> str:
     times = ", ".join(f"{k} {v * 1e3:.0f} ms" for k, v in result.timings.items())
     lines.append(f"  {result.evaluations} model evaluations; {times}")
     if result.at_bounds:
-        lines.append(f"  note: {', '.join(result.at_bounds)} at the edge of the search box; "
-                     "widen it with --bound NAME=LO:HI")
+        unit = np.asarray(to_unit(result.vector, result.bounds))
+        sides = {name: "lower" if unit[result.model.index(name)] < 0.5 else "upper"
+                 for name in result.at_bounds}
+        lines += [f"  note: {text}" for text in
+                  bound_notes(result.model.names, result.params, sides)]
     return "\n".join(lines)
 
 
+# Parameters that scale a term of f_r (linear in it): at a lower bound near zero the term is
+# simply absent, and widening towards zero cannot lower E.
+SCALE_PARAMETERS = ("kb", "kd")
+
+
+def bound_notes(names, params, at_bounds: dict) -> list[str]:
+    """What a parameter at the edge of the search box means, and whether to widen the box.
+
+    Args:
+        names: the parameter names, in the order of ``params``.
+        params: the fitted values.
+        at_bounds: ``{name: "lower" or "upper"}`` for each parameter at an edge.
+
+    Returns:
+        One sentence per parameter (or degenerate pair). The hint to widen with ``--bound``
+        is given only where widening can lower E: not for a scale parameter at its lower
+        bound (its term is absent), and not for kb at its lower bound with a positive b.
+        There ``kb exp(b (1 - cos g)^a)`` trades a smaller kb for a larger b, and with ``a``
+        small the data determine only the product, about ``kb exp(b)``: a wider box moves
+        both along that valley without improving the fit (on the EC1 coating, kb from 1e-14
+        to 1.1e-30 moved E from 1.704 % to 1.699 %; issue 15).
+    """
+    values = dict(zip(names, params))
+    notes = []
+    for name, side in at_bounds.items():
+        value = values[name]
+        if name == "kb" and side == "lower" and "b" in values and values["b"] > 0:
+            notes.append(
+                f"kb = {value:.3g} at its lower bound with b = {values['b']:+.3g}: in "
+                "kb exp(b (1 - cos g)^a) a smaller kb trades against a larger b, and the data "
+                f"determine only their product (kb exp(b) = {value * np.exp(values['b']):.3g}); "
+                "read kb and b together. Widening kb's bound moves both without improving E")
+        elif name in SCALE_PARAMETERS and side == "lower":
+            notes.append(f"{name} = {value:.3g} at its lower bound: its term is negligible "
+                         "for these data; widening the bound cannot lower E")
+        else:
+            notes.append(f"{name} = {value:.3g} at its {side} bound: the best fit may lie "
+                         f"beyond it; widen it with --bound {name}=LO:HI")
+    return notes
+
+
+def compilations(work):
+    """``work()``'s result, and how many functions XLA compiled for it (cache misses)."""
+    import jax.monitoring
+
+    misses = [0]
+
+    def listen(event, **_):
+        if event == "/jax/compilation_cache/compile_requests_use_cache":
+            misses[0] += 1
+        elif event == "/jax/compilation_cache/cache_hits":
+            misses[0] -= 1
+
+    jax.monitoring.register_event_listener(listen)
+    try:
+        return work(), misses[0]
+    finally:
+        jax.monitoring.unregister_event_listener(listen)
+
+
 def run_demo(args) -> None:
+    check_writable(folders={"--out": args.out})
     from brdfjax.cache import enable
 
-    enable()
+    cache = enable()
     from brdfjax.fitting import fit
     from brdfjax.formats import load, replace_atomically
     from brdfjax.hemispherical import energy_warning, reflectance
@@ -256,7 +362,7 @@ def run_demo(args) -> None:
     data = load(path)
     print(f"\nFit of {path.name} (SYNTHETIC stand-in: the paper's data are not published), "
           "on 10/30/45/60 deg, validated on 21/52 deg as in the paper")
-    result = fit(data, validate_incidences=[21, 52])
+    result, compiled = compilations(lambda: fit(data, validate_incidences=[21, 52]))
     paper = PAPER_SAMPLES["white_paint"]
     print(f"  {'':>3} {'fitted':>12} {'paper':>12}")
     for key in paper._fields:
@@ -267,7 +373,9 @@ def run_demo(args) -> None:
     rho0 = float(reflectance(result.params, 0.0))
     print(f"  rho(0 deg)   {100 * rho0:8.2f} %   paper 73.4 % (integrating sphere 79.6 %)")
     print(f"  status {result.status}; fit took {1e3 * result.timings['total']:.0f} ms "
-          "(first call includes compilation)")
+          + (f"(including {compiled} XLA compilations, which later runs load from "
+             f"{cache / 'xla'})" if compiled else
+             "(its compiled code loaded from the cache)"))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     replace_atomically(out / "demo_fit.png", lambda p: plot_fit(

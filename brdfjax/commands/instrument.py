@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from brdfjax.commands import add_model_option, angles, parameters
+from brdfjax.commands import add_model_option, angles, check_writable, parameters
 
 PLAN_OPTIONS = ("theta_r_step", "theta_r_max", "azimuth", "average", "integration_ms",
                 "beam_margin")
@@ -84,7 +84,8 @@ def register(subparsers) -> None:
                         help="chance that a line has one byte replaced")
     faults.add_argument("--stall-rate", type=float, default=0.0,
                         help="chance that a reply line is delayed by --stall-seconds")
-    faults.add_argument("--stall-seconds", type=float, default=1.0)
+    faults.add_argument("--stall-seconds", type=float, default=1.0,
+                        help="how long a stalled reply line waits (default 1)")
     faults.add_argument("--disconnect-after", type=int, metavar="N",
                         help="answer N commands, then hang up")
     p.set_defaults(run=run_simulate)
@@ -109,9 +110,13 @@ def scan_plan(args):
 
 
 def run_measure(args) -> None:
+    from pathlib import Path
+
     from brdfjax.instrument.acquire import measure
 
     plan = scan_plan(args)
+    journal = args.journal or Path(args.out).with_suffix(".journal.jsonl")  # measure's default
+    check_writable({"--out": args.out, "--journal": journal})
     print(f"plan: {len(plan.points)} geometries x (sample + reference); {plan.blocked} "
           "skipped where the detector would block the source", file=sys.stderr)
     result = measure(args.port, plan, args.out, journal=args.journal,

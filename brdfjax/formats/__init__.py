@@ -15,7 +15,8 @@
 from __future__ import annotations
 
 import os
-import tempfile
+import secrets
+import stat
 from pathlib import Path
 
 from brdfjax.measurements import DataError, Measurements
@@ -168,15 +169,35 @@ def replace_atomically(path, writer) -> None:
 
     The temporary file sits beside ``path`` with the same suffix (so writers that pick a
     format by suffix, like matplotlib, still can); on any error it is removed and ``path``
-    is left as it was.
+    is left as it was. The result has the mode a new file gets from the user's umask (0644
+    under umask 022; `tempfile.mkstemp` would give 0600), or the mode of the file it
+    replaces.
     """
     path = Path(path)
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.",
-                                         suffix=path.suffix)
-    os.close(handle)
+    temporary = _create_beside(path)
     try:
+        if path.exists():
+            os.chmod(temporary, stat.S_IMODE(path.stat().st_mode))
         writer(temporary)
         os.replace(temporary, path)
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
         raise
+
+
+def _create_beside(path: Path) -> str:
+    """A new empty hidden file beside ``path``, created with mode 0666 less the umask.
+
+    `os.open` applies the umask itself, so nothing reads or changes the process-wide umask
+    (which `os.umask` would, racing other threads).
+    """
+    for _ in range(100):
+        temporary = path.parent / f".{path.stem}.{secrets.token_hex(4)}{path.suffix}"
+        try:
+            os.close(os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+        except FileExistsError:
+            continue
+        except OSError as error:  # name the path the user gave, not the temporary file
+            raise OSError(f"cannot write {path}: {error.strerror}") from None
+        return str(temporary)
+    raise FileExistsError(f"cannot write {path}: no free temporary name beside it")

@@ -1,0 +1,67 @@
+"""MkDocs hooks: pages generated from the code at build time, so they cannot go stale.
+
+- ``api.md``: one section per name in ``brdfjax.__all__`` (mkdocstrings renders each
+  docstring from the module that defines it, found through ``brdfjax._EXPORTS``).
+- ``cli.md``: the ``--help`` of every command and sub-command of ``brdfjax``.
+- The notebooks in ``notebooks/`` and the figure of ``BENCHMARKS.md`` are added as pages and
+  files from where they live, so nothing is copied into ``docs/``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+from mkdocs.plugins import event_priority
+from mkdocs.structure.files import File
+
+REPO = Path(__file__).resolve().parents[1]
+EXTRA_FILES = ("benchmarks/compare.png",)
+
+
+@event_priority(100)  # before mkdocs-jupyter, which turns the .ipynb files into pages
+def on_files(files, config):
+    sources = sorted(p.relative_to(REPO).as_posix() for p in (REPO / "notebooks").glob("*.ipynb"))
+    for path in [*sources, *EXTRA_FILES]:
+        files.append(File(path, src_dir=str(REPO), dest_dir=config["site_dir"],
+                          use_directory_urls=config["use_directory_urls"]))
+    return files
+
+
+def on_page_markdown(markdown, page, config, files):
+    if "<!-- brdfjax-api -->" in markdown:
+        return markdown.replace("<!-- brdfjax-api -->", api_markdown())
+    if "<!-- brdfjax-cli -->" in markdown:
+        return markdown.replace("<!-- brdfjax-cli -->", cli_markdown())
+    return markdown
+
+
+def api_markdown() -> str:
+    import brdfjax
+
+    sections = []
+    for name in brdfjax.__all__:
+        module = brdfjax._EXPORTS[name]
+        sections.append(f"## `brdfjax.{name}`\n\n*Defined in `{module}`.*\n\n"
+                        f"::: {module}.{name}\n")
+    return "\n".join(sections)
+
+
+def cli_markdown() -> str:
+    from brdfjax.cli import build_parser
+
+    os.environ["COLUMNS"] = "100"  # argparse wraps help text to the terminal's width
+    sections = []
+    for path, parser in commands(build_parser(), ["brdfjax"]):
+        sections.append(f"## `{' '.join(path)}`\n\n```text\n{parser.format_help()}```\n")
+    return "\n".join(sections)
+
+
+def commands(parser, path):
+    """(path, parser) of the parser and every sub-command under it, depth first."""
+    yield path, parser
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                yield from commands(sub, [*path, name])

@@ -1,0 +1,49 @@
+"""The documentation site builds in strict mode and documents every public name."""
+
+import os
+import subprocess
+import sys
+
+import griffe
+import pytest
+from conftest import REPO
+
+import brdfjax
+from brdfjax.cli import build_parser
+
+
+def test_every_public_name_has_a_docstring():
+    package = griffe.load("brdfjax", search_paths=[str(REPO)])
+    missing = []
+    for name in brdfjax.__all__:
+        module = brdfjax._EXPORTS[name].removeprefix("brdfjax.")
+        docstring = package[f"{module}.{name}"].docstring
+        if docstring is None or not docstring.value.strip():
+            missing.append(name)
+    assert missing == []
+
+
+@pytest.mark.timeout(120)
+def test_the_site_builds_strictly_with_every_name_command_and_notebook(tmp_path):
+    """A broken reference, a missing include or an unknown page fails the strict build.
+
+    The notebooks are rendered without running them (``make docs`` runs them), which keeps
+    this test to seconds.
+    """
+    site = tmp_path / "site"
+    done = subprocess.run(
+        [sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(site)],
+        cwd=REPO, capture_output=True, text=True, timeout=110, check=False,
+        env={**os.environ, "BRDFJAX_DOCS_EXECUTE": "false", "NO_MKDOCS_2_WARNING": "1"})
+    assert done.returncode == 0, done.stderr[-3000:]
+    api = (site / "api" / "index.html").read_text()
+    assert all(f"brdfjax.{name}</code>" in api for name in brdfjax.__all__)
+    cli = (site / "cli" / "index.html").read_text()
+    for action in build_parser()._subparsers._group_actions:
+        assert all(f"usage: brdfjax {name}" in cli for name in action.choices)
+    assert "usage: brdfjax instrument simulate" in cli
+    assert "brdfjax fit data/synthetic/white_paint.csv" in (site / "index.html").read_text()
+    assert "Where the formulas break" in (site / "model" / "index.html").read_text()
+    assert (site / "benchmarks" / "compare.png").is_file()
+    for notebook in (REPO / "notebooks").glob("*.ipynb"):
+        assert (site / "notebooks" / notebook.stem / "index.html").is_file(), notebook.name
