@@ -34,7 +34,7 @@ def register(subparsers) -> None:
                                           "paper's model by default) by minimising E of "
                                           "Eq. (6).")
     p.add_argument("file", help=FILE_HELP)
-    add_model_option(p, "the model to fit")
+    add_model_option(p, "the model to fit (auto: the lowest cv_error of brdfjax models)")
     p.add_argument("--method", choices=("hybrid", "ga", "lm"), default="hybrid",
                    help="hybrid: genetic search then Levenberg-Marquardt (default)")
     p.add_argument("--seed", type=int, default=0, help=SEED_HELP)
@@ -66,6 +66,16 @@ def register(subparsers) -> None:
     p.add_argument("--plot-corner", metavar="OUT",
                    help="corner plot of the parameters' posterior (PNG; needs --uncertainty "
                         "laplace or mcmc)")
+    p.add_argument("--cv", action="store_true",
+                   help="cross-validate by incidence: hold out each incidence in turn and "
+                        "report its E (all folds one batched fit)")
+    p.add_argument("--predict", metavar="GEOMETRY",
+                   help="predict at the geometry of this file (any format, or a CSV of "
+                        "theta_i,theta_r,phi_r), with 68/95 %% predictive intervals "
+                        "calibrated on cross-validation; needs --predict-out")
+    p.add_argument("--predict-out", metavar="PRED.csv",
+                   help="where --predict writes theta_i,theta_r,phi_r,brdf,lo68,hi68,lo95,"
+                        "hi95[,measured]")
     add_reader_options(p)
     p.set_defaults(run=run_fit)
 
@@ -126,10 +136,14 @@ def run_fit(args) -> None:
 
     if args.plot_corner and args.uncertainty == "none":
         raise ValueError("--plot-corner needs --uncertainty laplace or mcmc")
+    if bool(args.predict) != bool(args.predict_out):
+        raise ValueError("--predict GEOMETRY and --predict-out PRED.csv go together")
     check_writable({"--json": args.json, "--plot": args.plot, "--plot-3d": args.plot_3d,
-                    "--plot-corner": args.plot_corner,
+                    "--plot-corner": args.plot_corner, "--predict-out": args.predict_out,
                     "--chain": args.chain if args.uncertainty == "mcmc" else None})
     data = load(args.file, **reader_options(args))
+    if args.model == "auto":
+        args.model = choose_model(data, args.seed)
     result = fit(data, args.method, model=args.model, seed=args.seed,
                  validate_incidences=held_out(data, args),
                  bounds=make_bounds(parse_bounds(args.bound), model=args.model))
@@ -141,6 +155,8 @@ def run_fit(args) -> None:
 
             write_atomically(args.json, json.dumps(result.to_dict(), indent=2) + "\n")
         raise ValueError(f"{args.file}: the fit failed: {result.message}")
+    if args.cv or args.predict:
+        validate_and_predict(result, data, args)
     uncertainty = estimate_uncertainty(result, data, args)
     if uncertainty is not None:
         print(uncertainty.table())
@@ -165,6 +181,37 @@ def failure_reason(data) -> str:
     return ("no Levenberg-Marquardt start reached a finite E of Eq. (6): the model "
             "overflowed or gave NaN wherever it was tried; check the data for extreme "
             "values, or narrow the search box with --bound")
+
+
+def choose_model(data, seed: int) -> str:
+    """``--model auto``: the model with the lowest cv_error (`brdfjax.selection`), said aloud."""
+    from brdfjax.selection import compare_models
+
+    comparison = compare_models(data, seed=seed)
+    print(f"--model auto: {comparison.recommendation()}")
+    return comparison.best.name
+
+
+def validate_and_predict(result, data, args) -> None:
+    """``--cv`` prints the cross-validation; ``--predict`` writes the predictive intervals."""
+    from brdfjax.formats import load_geometry, write_atomically
+    from brdfjax.prediction import calibrate, predict
+    from brdfjax.validation import cross_validate
+
+    validation = cross_validate(result.training, result.model, seed=args.seed,
+                                bounds=result.bounds)
+    if args.cv:
+        print(validation.table())
+    if args.predict:
+        geometry = load_geometry(args.predict, **reader_options(args))
+        prediction = predict(result, geometry, calibrate(result.training, validation))
+        write_atomically(args.predict_out, prediction.to_csv())
+        line = f"predictions at {len(geometry)} points written to {args.predict_out}"
+        if prediction.measured is not None:
+            line += (f"; measured values inside the 95 % intervals: "
+                     f"{100 * prediction.coverage('95'):.1f} %, 68 %: "
+                     f"{100 * prediction.coverage('68'):.1f} %")
+        print(line)
 
 
 def estimate_uncertainty(result, data, args):
