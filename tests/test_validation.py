@@ -1,0 +1,92 @@
+"""Cross-validation by incidence, predictive intervals, and model choice."""
+
+import json
+
+import numpy as np
+import pytest
+import transcription
+from conftest import DATA
+
+from brdfjax.cli import main
+from brdfjax.formats import load
+from brdfjax.measurements import Measurements
+from brdfjax.model import brdf
+from brdfjax.prediction import calibrate, predict
+from brdfjax.validation import cross_validate, incidence_groups
+
+GGX = (0.5, 0.05, 0.9, 0.1)
+
+
+@pytest.fixture(scope="module")
+def ggx_data():
+    """GGX data with 2.5 % noise at 10/25/40/55/70 deg, in-plane, every 3 deg."""
+    ti, tr, side = np.meshgrid(np.radians([10.0, 25.0, 40.0, 55.0, 70.0]),
+                               np.radians(np.arange(1.0, 86.0, 3.0)), [0.0, np.pi])
+    clean = np.asarray(brdf(np.array(GGX), ti.ravel(), tr.ravel(), side.ravel(), model="ggx"))
+    noisy = clean * (1 + 0.025 * np.random.default_rng(7).standard_normal(clean.size))
+    return Measurements(ti.ravel(), tr.ravel(), side.ravel(), noisy,
+                        metadata={"sample": "synthetic ggx"})
+
+
+@pytest.fixture(scope="module")
+def ggx_validation(ggx_data):
+    return cross_validate(ggx_data, "ggx")
+
+
+def test_folds_hold_out_each_incidence_and_score_it_independently(ggx_data, ggx_validation):
+    folds = ggx_validation.folds
+    assert [f.label for f in folds] == ["10", "25", "40", "55", "70"]
+    assert [f.interior for f in folds] == [False, True, True, True, False]
+    for fold in folds:
+        held = ggx_data.select(np.round(np.degrees(ggx_data.theta_i), 6) == fold.low)
+        # E of Eq. (6) on the held-out incidence, from the transcription of MODELS.md
+        model = transcription.ggx(*fold.params, held.theta_i, held.theta_r, held.phi_r)
+        y, m = held.brdf * np.cos(held.theta_r), model * np.cos(held.theta_r)
+        assert fold.held_error == pytest.approx(np.sum((m - y) ** 2) / np.sum(y**2), rel=1e-9)
+    assert ggx_validation.cv_error == pytest.approx(
+        np.mean([f.held_error for f in folds[1:4]]), rel=1e-12)
+    # the model is exact: held-out E is the noise's, about 0.025^2
+    assert ggx_validation.cv_error < 4 * 0.025**2
+
+
+def test_predictive_intervals_cover_new_measurements_of_an_exact_model(ggx_data,
+                                                                       ggx_validation):
+    """A fresh noise draw at the fitted geometry falls in the 95 % intervals about 95 %
+    of the time (a loose binomial window: 300 correlated points)."""
+    from brdfjax.fitting import fit
+
+    result = fit(ggx_data, model="ggx")
+    calibration = calibrate(ggx_data, ggx_validation)
+    fresh = np.asarray(brdf(np.array(GGX), ggx_data.theta_i, ggx_data.theta_r,
+                            ggx_data.phi_r, model="ggx"))
+    fresh = fresh * (1 + 0.025 * np.random.default_rng(8).standard_normal(fresh.size))
+    new = Measurements(ggx_data.theta_i, ggx_data.theta_r, ggx_data.phi_r, fresh)
+    prediction = predict(result, new, calibration)
+    assert 0.85 <= prediction.coverage("95") <= 1.0
+    assert 0.55 <= prediction.coverage("68") <= 0.85
+    assert np.all(prediction.lo95 <= prediction.lo68) and np.all(prediction.hi68 <= prediction.hi95)
+
+
+def test_scattered_incidences_are_binned():
+    data = load(DATA / "real" / "nist-germer-ptfe" / "PTFE.data.random.csv", wavelength_nm=532)
+    groups = incidence_groups(data)
+    assert 3 <= len(groups) <= 8
+    masks = np.stack([g[3] for g in groups])
+    assert np.all(masks.sum(axis=0) == 1)  # every point in exactly one fold
+    counts = masks.sum(axis=1)
+    assert counts.min() > 0.5 * counts.mean()  # about equal counts
+
+
+def test_models_command_ranks_by_cv_error(tmp_path, capsys):
+    out = tmp_path / "models.json"
+    code = main(["models", str(DATA / "synthetic" / "white_paint.csv"), "--models",
+                 "lambert,five", "--json", str(out)])
+    assert code == 0
+    record = json.loads(out.read_text())
+    assert record["ranking"] == ["five", "lambert"] and record["best"] == "five"
+    five = record["models"]["five"]
+    assert set(five) >= {"params", "error", "cv_error", "cv_by_incidence", "aic", "bic",
+                         "reflectance", "at_bounds"}
+    assert five["cv_error"] == pytest.approx(np.mean([five["cv_by_incidence"][k] for k in
+                                                      ("21", "30", "45", "52")]), rel=1e-12)
+    assert "recommended: five" in capsys.readouterr().out
