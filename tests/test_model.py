@@ -7,22 +7,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from transcription import brdf as transcribed
+from transcription import generic_points
 
 from brdfjax.geometry import ShadowingConstants, scene
 from brdfjax.model import PAPER_SAMPLES, Params, brdf, evaluate, projected_brdf
 
 HALF_PI = np.pi / 2
 SAMPLES = list(PAPER_SAMPLES.values())
-
-
-def generic_points(count, seed, in_plane):
-    """Random angles away from the points where the paper's formulas divide by zero."""
-    rng = np.random.default_rng(seed)
-    ti, tr = rng.uniform(0.02, 1.45, (2, 4 * count))
-    pr = (np.where(rng.random(4 * count) < 0.5, 0.0, np.pi) if in_plane
-          else rng.uniform(0, 2 * np.pi, 4 * count))
-    far = (np.abs(ti - tr) > 0.02) | (np.abs(np.sin(pr / 2)) < 0.9)
-    return ti[far][:count], tr[far][:count], pr[far][:count]
 
 
 @pytest.mark.parametrize("in_plane", [False, True])

@@ -12,6 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.integrate import dblquad
 from scipy.optimize import lsq_linear
+from transcription import generic_points
 
 import brdfjax
 from brdfjax.bounds import default_bounds, from_unit
@@ -39,16 +40,6 @@ IDS = [f"{name}-{k}" for name in NAMES for k in range(len(EXAMPLES[name]))]
 def test_every_model_has_examples_and_the_default_comes_first():
     assert set(EXAMPLES) == set(NAMES) and NAMES[0] == "five"
     assert set(transcription.MODELS) == set(NAMES)
-
-
-def generic_points(count, seed, in_plane):
-    """Random angles away from the points where the printed formulas divide by zero."""
-    rng = np.random.default_rng(seed)
-    ti, tr = rng.uniform(0.02, 1.45, (2, 4 * count))
-    pr = (np.where(rng.random(4 * count) < 0.5, 0.0, np.pi) if in_plane
-          else rng.uniform(0, 2 * np.pi, 4 * count))
-    far = (np.abs(ti - tr) > 0.02) | (np.abs(np.sin(pr / 2)) < 0.9)
-    return ti[far][:count], tr[far][:count], pr[far][:count]
 
 
 @pytest.mark.parametrize("in_plane", [False, True])

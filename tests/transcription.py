@@ -12,6 +12,16 @@ import numpy as np
 PAPER_CONSTANTS = (0.0136, 0.0141, 9.0, 1.0)  # sigma_sph, sigma_r, u_sph, v_sph
 
 
+def generic_points(count, seed, in_plane):
+    """Random angles away from the points where the printed formulas divide by zero."""
+    rng = np.random.default_rng(seed)
+    ti, tr = rng.uniform(0.02, 1.45, (2, 4 * count))
+    pr = (np.where(rng.random(4 * count) < 0.5, 0.0, np.pi) if in_plane
+          else rng.uniform(0, 2 * np.pi, 4 * count))
+    far = (np.abs(ti - tr) > 0.02) | (np.abs(np.sin(pr / 2)) < 0.9)
+    return ti[far][:count], tr[far][:count], pr[far][:count]
+
+
 def directions(ti, tr, pr):
     """w_i = (sin ti, 0, cos ti) and w_r = (sin tr cos pr, sin tr sin pr, cos tr)."""
     zero = np.zeros_like(ti * tr * pr)
