@@ -28,10 +28,12 @@ from brdfjax.model import PAPER_SAMPLES, PARAMETER_NAMES, projected_brdf
 from brdfjax.posterior import (
     UncertaintyWarning,
     build_posterior,
+    emcee_snooker_is_fixed,
     log_likelihood,
     log_posterior,
     log_posterior_batch,
     sample_posterior,
+    snooker_move,
 )
 from brdfjax.synthetic import paper_sample
 
@@ -388,6 +390,32 @@ def test_cli_mcmc_reports_an_unconverged_chain(fit_once, tmp_path, capsys):
     assert uncertainty["diagnostics"]["walkers"] == 16
     assert main(["fit", str(DATA / "synthetic" / "white_paint.csv"), "--uncertainty", "none",
                  "--plot-corner", str(tmp_path / "c.png")]) == 1
+
+
+@pytest.mark.parametrize(("version", "fixed"), [
+    ("3.1.6", False), ("3.1.5", False), ("3.0.2", False), ("3.1.6.post1", False),
+    ("3.1.7", True), ("3.2", True), ("3.2.0.post1", True), ("4.0.0", True),
+    ("3.1.7.dev12+g1a2b3c", False), ("3.1.7rc1", False), ("unknown", False)])
+def test_snooker_move_follows_the_installed_emcee(monkeypatch, version, fixed):
+    """emcee <= 3.1.6 has the snooker bug (fixed on emcee's main branch, PR #531, January
+    2025): the corrected move until a final release after 3.1.6, then emcee's own."""
+    import emcee
+
+    assert emcee_snooker_is_fixed(version) is fixed
+    monkeypatch.setattr(emcee, "__version__", version)
+    move = snooker_move(gamma=1.5)
+    assert isinstance(move, emcee.moves.DESnookerMove) is fixed
+    assert isinstance(move, emcee.moves.red_blue.RedBlueMove)
+    if fixed:
+        assert move.gammas == 1.5
+
+
+def test_the_installed_emcee_gets_the_move_it_needs():
+    import emcee
+
+    move = snooker_move()
+    assert isinstance(move, emcee.moves.DESnookerMove) == emcee_snooker_is_fixed(
+        emcee.__version__)
 
 
 def test_measurements_without_information_are_refused():
