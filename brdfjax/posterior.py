@@ -28,7 +28,9 @@ emcee 3.1.6's ``DESnookerMove`` samples the wrong distribution: it projects on
 Braak and Vrugt, Statistics and Computing 18, 435, 2008). On a 5-D Gaussian it gives
 variances 25 % too small alone and 3-5 % too small in the 0.8 DE / 0.2 snooker mix, where the
 corrected move gives them to 1 % (``benchmarks/bench_uncertainty.py`` repeats the check).
-`sample_posterior` uses that mix with the corrected move, `snooker_move`.
+`sample_posterior` uses that mix with the corrected move, `snooker_move`. emcee's main branch
+fixed the move in January 2025 (PR #531), in no release yet: `snooker_move` hands over to
+emcee's own once the installed emcee is a final release after 3.1.6.
 """
 
 from __future__ import annotations
@@ -366,6 +368,18 @@ def noise_summary(post: Posterior, median=None, ci95=None) -> dict:
     return summary
 
 
+def emcee_snooker_is_fixed(version: str) -> bool:
+    """Whether emcee ``version`` carries the snooker fix: a final release after 3.1.6.
+
+    Development and pre-release versions count as unfixed (the corrected move is right
+    either way; emcee's own is used only where it is known to be).
+    """
+    import re
+
+    release = re.fullmatch(r"(\d+)\.(\d+)(?:\.(\d+))?(?:\.post\d+)?", version)
+    return release is not None and tuple(int(p or 0) for p in release.groups()) > (3, 1, 6)
+
+
 def snooker_move(gamma: float = 1.7):
     """ter Braak and Vrugt's (2008) snooker update, as emcee's ``DESnookerMove`` should be.
 
@@ -376,9 +390,14 @@ def snooker_move(gamma: float = 1.7):
     ``(|q - z| / |x - z|)^(d - 1)``. emcee's move draws the three from three quarters of the
     ensemble instead, which costs two more log-probability calls per step. Vectorised over
     the walkers; ``gamma`` 1.7 as ter Braak and Vrugt recommend. See the module docstring for
-    what emcee 3.1.6 does wrong.
+    what emcee 3.1.6 does wrong. With an emcee release that carries the fix
+    (`emcee_snooker_is_fixed`), emcee's own ``DESnookerMove``.
     """
+    import emcee
     from emcee.moves.red_blue import RedBlueMove
+
+    if emcee_snooker_is_fixed(emcee.__version__):
+        return emcee.moves.DESnookerMove(gammas=gamma)
 
     class SnookerMove(RedBlueMove):
         def get_proposal(self, s, c, random):

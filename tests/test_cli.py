@@ -1,10 +1,12 @@
 """The command line: help everywhere, outputs people read, files people keep."""
 
 import json
+import re
 import warnings
 
 import numpy as np
 import pytest
+import transcription
 from conftest import DATA
 
 from brdfjax.cli import build_parser, main
@@ -40,10 +42,24 @@ def test_eval_prints_the_model(capsys):
     np.testing.assert_allclose(rows[:, 3], expected, rtol=1e-9)
 
 
+def numbers(pattern, text):
+    """The groups of the first line of ``text`` that matches ``pattern``, as floats."""
+    return np.array(re.search(pattern, text, re.MULTILINE).groups(), dtype=float)
+
+
+def independent_rho(params, degrees):
+    """Eq. (9) by the tests' own integrator of the transcription (tests/transcription.py)."""
+    return np.array([transcription.reflectance("five", tuple(map(float, params)), np.radians(d))
+                     for d in degrees])
+
+
 def test_reflectance_flags_energy_creation(capsys):
     assert main(["reflectance", "--params", "polyimide", "--theta-i", "0"]) == 0
     out = capsys.readouterr().out
-    assert "0,7.6087" in out and "warning: reflectance up to 7.6" in out
+    (printed,) = numbers(r"^0,([0-9.]+)$", out)
+    expected = independent_rho(PAPER_SAMPLES["polyimide"], [0.0])[0]  # 7.60873...
+    assert printed == pytest.approx(expected, rel=1e-6, abs=5e-7)  # %.6f
+    assert f"warning: reflectance up to {expected:.3f} > 1" in out
     with pytest.raises(SystemExit) as stop:  # argparse: five numbers needed
         main(["reflectance", "--params", "1,2"])
     assert stop.value.code == 2
@@ -86,7 +102,12 @@ def test_convert_and_info(tmp_path, capsys):
 def test_demo_reproduces_the_papers_white_paint(tmp_path, capsys):
     assert main(["demo", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
-    assert "white_paint      0.7341" in out  # Eq. (9) with the paper's parameters: 73.4 %
+    # Eq. (9) with the paper's parameters (white paint 0.7341 at 0 deg: the paper's 73.4 %),
+    # every printed digit against the independent integration of the transcription.
+    for name, params in PAPER_SAMPLES.items():
+        printed = numbers(rf"^  {name} +([0-9.]+) +([0-9.]+) +([0-9.]+)", out)
+        np.testing.assert_allclose(printed, independent_rho(params, [0.0, 30.0, 60.0]), rtol=1e-6,
+                                   atol=5e-5)  # %.4f, and the quadrature's 1e-6
     assert "polyimide" in out and "not energy-conserving" in out
     assert "E (held out)" in out and "status converged" in out
     assert "XLA compilations" in out or "compiled code loaded from the cache" in out
@@ -96,8 +117,11 @@ def test_demo_reproduces_the_papers_white_paint(tmp_path, capsys):
 def test_fit_summary_flags_a_fit_that_creates_energy(capsys):
     assert main(["fit", str(DATA / "synthetic" / "polyimide.csv"), "--uncertainty", "none"]) == 0
     out = capsys.readouterr().out
-    assert "reflectance rho(0, 30, 60 deg) = 7.6" in out
-    assert "warning: reflectance up to 7.6" in out and "not physical" in out
+    # The printed rho of the printed (6-digit) parameters, against the independent integral.
+    params = [numbers(rf"^ +{k} = +(\S+)", out)[0] for k in ("kb", "kr", "a", "b", "kd")]
+    rho = numbers(r"reflectance rho\(0, 30, 60 deg\) = (\S+), (\S+), (\S+)$", out)
+    np.testing.assert_allclose(rho, independent_rho(params, [0.0, 30.0, 60.0]), rtol=2e-5)
+    assert f"warning: reflectance up to {rho.max():.3f} > 1" in out and "not physical" in out
 
 
 def test_every_argument_has_help():

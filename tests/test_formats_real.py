@@ -1,8 +1,9 @@
 """The readers of real instrument files, checked against the shipped data and its derived CSVs.
 
-The shipped files live in ``data/real``; the derived in-plane CSVs (made upstream of this
-project from the same raw files, with the OPPOSITE azimuth convention: there ``phi_r = 0``
-and ``theta_r_signed > 0`` are the specular side) stay in ``../shared`` next to the repo.
+The shipped files live in ``data/real``, and so do the derived in-plane CSVs the readers are
+checked against (made outside this project from the same raw files, with the OPPOSITE azimuth
+convention: there ``phi_r = 0`` and ``theta_r_signed > 0`` are the specular side), so every
+test here runs on any clone.
 """
 
 import csv
@@ -20,16 +21,9 @@ REPO = Path(__file__).resolve().parents[1]
 DATA = REPO / "data" / "real"
 UAZ = DATA / "uaz-loft-rt300s"
 PTFE = DATA / "nist-germer-ptfe" / "PTFE.data.csv"
-SHARED = REPO.parent / "shared" / "data" / "real"
-UAZ_DERIVED = SHARED / "uaz-loft-rt300s" / "derived" / "inplane_brdf.csv"
-PTFE_DERIVED = SHARED / "nist-germer-ptfe" / "derived" / "PTFE_inplane.csv"
-PTFE_RANDOM = SHARED / "nist-germer-ptfe" / "PTFE.data.random.csv"
-
-needs_shared = pytest.mark.skipif(
-    not SHARED.is_dir(),
-    reason="needs ../shared/data/real: the derived in-plane CSVs made upstream from the same "
-           "raw files (not shipped with the repository), against which these tests check the "
-           "readers")
+UAZ_DERIVED = UAZ / "derived" / "inplane_brdf.csv"
+PTFE_DERIVED = DATA / "nist-germer-ptfe" / "derived" / "PTFE_inplane.csv"
+PTFE_RANDOM = DATA / "nist-germer-ptfe" / "PTFE.data.random.csv"
 
 # Which .bsdf of the authors holds which material of the derived CSV.
 BSDF_MATERIALS = {"AnoBlackEC1onAlum": "AnoBlack_EC1_on_Al6061",
@@ -61,7 +55,6 @@ def rt300s_file(run: str) -> Path:
     return UAZ / "raw" / f"{run}.xls"
 
 
-@needs_shared
 def test_rt300s_matches_the_derived_csv_for_every_run():
     """Every row of every run agrees to 1e-9: the derived CSV keeps all points (no
     beam-crossing cut) and used the blank of each folder (blank_v2o0_20250911.xls,
@@ -205,7 +198,6 @@ def test_zemax_azimuth_zero_points_toward_the_normal():
     np.testing.assert_array_equal(phi_r, [180, 0, 0, 180])
 
 
-@needs_shared
 @pytest.mark.parametrize("name", sorted(BSDF_MATERIALS))
 def test_zemax_authors_tables_agree_with_the_raw_conversion(name):
     """The authors' in-plane table rows against the run-averaged derived CSV.
@@ -325,7 +317,6 @@ def test_zemax_write_refuses_data_off_a_grid(tmp_path):
 
 # --- NIST -------------------------------------------------------------------------------
 
-@needs_shared
 @pytest.mark.parametrize("wavelength", [351, 532, 633, 1064])
 def test_nist_in_plane_rows_match_the_derived_csv(wavelength):
     """The regular grid's in-plane points are exactly the derived CSV's (its phi_r_deg = 0
@@ -359,7 +350,6 @@ def test_nist_conventions():
     assert forward.item() > 1.2 * backward.item()
 
 
-@needs_shared
 def test_nist_random_file_agrees_with_the_regular_grid():
     """The randomly sampled file stores the source as thetai > 0 at azimuth phii; read that
     way, its points agree with their nearest regular-grid neighbours to 0.5 % on average

@@ -8,6 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from transcription import brdf as transcribed
 from transcription import generic_points
+from transcription import shadowing as transcribed_shadowing
 
 from brdfjax.geometry import ShadowingConstants, scene
 from brdfjax.model import PAPER_SAMPLES, Params, brdf, evaluate, projected_brdf
@@ -51,10 +52,21 @@ def test_named_and_vector_parameters_agree():
     assert Params.from_vector(p.vector()) == Params(*map(jnp.asarray, p))
 
 
-def test_constants_can_be_overridden():
+@pytest.mark.parametrize("changed", [{"sigma_sph": 0.05}, {"sigma_r": 0.2}, {"u_sph": 3.0},
+                                     {"v_sph": 2.5}, {"sigma_sph": 0.002, "sigma_r": 0.0}],
+                         ids=lambda c: ",".join(c))
+def test_overridden_constants_match_the_transcription(changed):
+    """Each shadowing constant of Eq. (3)-(4) reaches G: values equal the transcription
+    evaluated with the same constants, and differ from the paper's (by more than 0.1 % where the
+    lobe is visible)."""
+    constants = ShadowingConstants(**changed)
+    ti, tr, pr = generic_points(300, 4, in_plane=False)
     p = PAPER_SAMPLES["white_paint"]
-    changed = ShadowingConstants(sigma_sph=0.05)
-    assert float(brdf(p, 0.5, 1.2, 2.0, changed)) != float(brdf(p, 0.5, 1.2, 2.0))
+    exact = transcribed(*(np.longdouble(x) for x in p),
+                        *(x.astype(np.longdouble) for x in (ti, tr, pr)), constants=constants)
+    got = np.asarray(brdf(p, ti, tr, pr, constants))
+    np.testing.assert_allclose(got, exact.astype(float), rtol=1e-12, atol=0)
+    assert np.max(np.abs(got / np.asarray(brdf(p, ti, tr, pr)) - 1)) > 1e-3
 
 
 # ---- limits where the formulas break: values and gradients finite, and the right value
@@ -84,6 +96,21 @@ EDGE_POINTS = {
     "grazing view": (0.4, HALF_PI, np.pi),
     "grazing view, source side": (0.4, HALF_PI, 0.0),
 }
+STEP = 1e-7
+# Where the transcription (0/0 at most edges) is evaluated instead: points STEP inside the
+# domain, along a path that avoids its other singular points; their mean is the limit.
+# Back-scatter needs none: the printed formulas are finite there.
+APPROACH = {
+    "specular": [(0.6, 0.6 + STEP, np.pi), (0.6, 0.6 - STEP, np.pi)],
+    "back-scatter": [(0.6, 0.6, 0.0)],
+    "normal both": [(STEP, STEP, 0.0)],  # along the back-scatter line (a cusp if a < 1/2)
+    "normal incidence grazing view": [(STEP, HALF_PI - STEP, 1.0)],
+    "grazing both, specular (w_r = -w_i)": [(HALF_PI - 2 * STEP, HALF_PI - STEP, np.pi)],
+    "grazing both, back-scatter": [(HALF_PI - STEP, HALF_PI - STEP, 0.0)],
+    "grazing incidence": [(HALF_PI - STEP, 0.4, np.pi)],
+    "grazing view": [(0.4, HALF_PI - STEP, np.pi)],
+    "grazing view, source side": [(0.4, HALF_PI - STEP, 0.0)],
+}
 
 
 @pytest.mark.parametrize("point", EDGE_POINTS.values(), ids=list(EDGE_POINTS))
@@ -93,6 +120,20 @@ def test_edges_are_finite_on_both_paths(point, params):
     for flag in {False, in_plane}:
         values = VALUE_AND_GRADS[flag](jnp.asarray(params), tuple(map(jnp.asarray, point)))
         assert all_finite(values)
+
+
+@pytest.mark.parametrize("edge", list(EDGE_POINTS))
+@pytest.mark.parametrize("params", SAMPLES, ids=list(PAPER_SAMPLES))
+def test_edges_are_the_transcriptions_limits(edge, params):
+    """At every edge point the value is the printed formula's limit (to 2e-6: the formula is
+    taken 1e-7 away, and its slope there reaches ~5 per radian, relative)."""
+    p = np.array(params)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        near = np.mean([transcribed(*(np.longdouble(x) for x in p),
+                                    *(np.longdouble(x) for x in point))
+                        for point in APPROACH[edge]])
+    assert np.isfinite(near)
+    assert float(brdf(p, *EDGE_POINTS[edge])) == pytest.approx(float(near), rel=2e-6)
 
 
 def test_specular_value_is_the_in_plane_limit():
@@ -119,9 +160,10 @@ def test_back_scatter_value_and_a_derivative():
     value, grad_p, _ = VALUE_AND_GRADS[True](p, (jnp.asarray(0.6), jnp.asarray(0.6),
                                                  jnp.asarray(0.0)))
     kb, kr, _, _, kd = np.array(p)
-    geometry = scene(0.6, 0.6, 0.0)
+    shadowing, alpha, cos_g = transcribed_shadowing(0.6, 0.6, 0.0)  # the printed Eq. (3)-(4)
+    assert alpha == pytest.approx(0.6, rel=1e-12) and cos_g == 1.0
     facets = kr**2 * np.cos(0.6) / (np.sin(0.6) ** 2 + kr**2 * np.cos(0.6) ** 2)  # alpha = ti
-    expected = kb * facets * 1.0 * float(geometry.shadowing) + kd  # R0(0) = 1
+    expected = kb * facets * 1.0 * shadowing / np.cos(0.6) + kd  # R0(0) = 1
     assert float(value) == pytest.approx(expected, rel=1e-14)
     assert float(grad_p[2]) == 0.0
 

@@ -5,6 +5,7 @@ zero at the specular point and at grazing angles, exactly where the printed form
 Every function takes numpy arrays (``np.longdouble`` for a reference to the last digits).
 """
 
+import functools
 import math
 
 import numpy as np
@@ -120,3 +121,35 @@ def rpv(rho0, k, asymmetry, rhoc, ti, tr, pr):
 
 MODELS = {"five": brdf, "torrance-sparrow": torrance_sparrow, "ggx": ggx,
           "beckmann": beckmann, "lambert": lambert, "rpv": rpv}
+
+
+# ---- Eq. (9) by an integrator that shares nothing with brdfjax.hemispherical
+
+@functools.cache
+def reflectance(name, params, ti, peak="back-scatter", tol=1e-7):
+    """rho(ti) = integral of f_r cos(tr) d(omega), by nested adaptive quadrature (scipy quad).
+
+    Plain (theta_r, phi_r) coordinates, with breaks where the integrand is sharp: at
+    ``tr = ti`` in theta_r, and 0.05 rad from the peak's azimuth (0 for back-scatter, pi for
+    specular) in phi_r; the integrand is even in phi_r, so [0, pi] is integrated and
+    doubled. Points where the printed formula is 0/0 (a set of measure zero) count as 0.
+    Cached: the same integral is asked for by several tests.
+    """
+    from scipy.integrate import quad
+
+    formula = MODELS[name]
+
+    def inner(pr):
+        def integrand(tr):
+            with np.errstate(all="ignore"):
+                value = float(formula(*params, ti, tr, pr))
+            return value * math.cos(tr) * math.sin(tr) if math.isfinite(value) else 0.0
+
+        points = [ti] if 0 < ti < math.pi / 2 else None
+        return quad(integrand, 0, math.pi / 2, points=points, epsabs=tol / 10, epsrel=tol,
+                    limit=200)[0]
+
+    width = 0.05
+    split = width if peak == "back-scatter" else math.pi - width
+    return 2 * sum(quad(inner, low, high, epsabs=tol / 10, epsrel=tol, limit=200)[0]
+                   for low, high in ((0.0, split), (split, math.pi)))
