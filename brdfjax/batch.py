@@ -53,6 +53,7 @@ import jax
 import numpy as np
 
 from brdfjax.bounds import Bounds, default_bounds
+from brdfjax.cache import stage
 from brdfjax.evolve import EvolveConfig, EvolveResult, evolve
 from brdfjax.fitting import (
     FitResult,
@@ -231,10 +232,11 @@ def _block(values, number: int, size: int):
     return values[number * size:(number + 1) * size]
 
 
-@partial(jax.jit, static_argnames=("population_size", "max_generations", "starts",
-                                   "max_steps", "search_batch", "polish_batch"))
+@stage(static_argnames=("population_size", "max_generations", "starts", "max_steps",
+                        "search_batch", "polish_batch"))
 def _fit_chunk(seeds, scene, target, weight, bounds: Bounds, config: EvolveConfig,
-               model: Model, *, population_size: int, max_generations: int, starts: int, max_steps: int,
+               model: Model, *, population_size: int, max_generations: int, starts: int,
+               max_steps: int,
                search_batch: int | None,
                polish_batch: int | None) -> tuple[EvolveResult, PolishResult]:
     """The hybrid fit of a padded chunk in one compiled call.

@@ -21,7 +21,14 @@ from brdfjax.evolve import EvolveConfig, EvolveResult, evolve
 from brdfjax.measurements import DataError, Measurements
 from brdfjax.model import FIVE
 from brdfjax.models import Model, get
-from brdfjax.objective import prepare, problem, projected, relative_error, targets
+from brdfjax.objective import (
+    prepare,
+    problem,
+    projected,
+    relative_error,
+    targets,
+    with_loss,
+)
 from brdfjax.polish import PolishResult, polish, polish_population
 
 METHODS = ("hybrid", "ga", "lm")
@@ -49,7 +56,9 @@ class FitResult:
         method: the method used; train_incidences, validation_incidences: in degrees.
         message: why the status, where there is more to say (a batch sample's data error).
         model: the `brdfjax.models.Model` fitted.
-        training: the measurements fitted (for cross-validation and predictions).
+        training: the measurements fitted (for cross-validation and predictions), with the
+            weights of the loss.
+        loss: what the fit minimised (`brdfjax.objective.with_loss`).
     """
 
     params: tuple
@@ -72,6 +81,7 @@ class FitResult:
     model: Model = field(default=FIVE)
     message: str = ""
     training: Measurements | None = field(default=None, repr=False)
+    loss: str = "eq6"
 
     @property
     def vector(self) -> np.ndarray:
@@ -82,6 +92,7 @@ class FitResult:
         """A JSON-ready summary (E as a fraction, incidences as string keys)."""
         return {
             "model": self.model.name,
+            "loss": self.loss,
             "params": dict(zip(self.model.names, map(float, self.params))),
             "error": self.error,
             "error_by_incidence": {f"{k:g}": v for k, v in self.error_by_incidence.items()},
@@ -124,7 +135,7 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
         seed: int = 0, validate_incidences=None, bounds: Bounds | None = None, start=None,
         starts: int = 16, population_size: int = 128, max_generations: int = 40,
         max_steps: int = 1000, config: EvolveConfig | None = None,
-        constants=None) -> FitResult:
+        constants=None, loss: str = "eq6") -> FitResult:
     """Fit a model (the five-parameter model by default) by minimising E of Eq. (6).
 
     Args:
@@ -142,6 +153,8 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
         config: genetic-search rates (defaults if None).
         constants: the shadowing constants of Eq. (3), for models with a G term (the
             paper's if None).
+        loss: ``eq6`` (E of Eq. 6, the default), ``relative`` or ``balanced``
+            (`brdfjax.objective.with_loss`); E is then reported under that loss.
 
     Returns:
         A `FitResult`.
@@ -151,7 +164,7 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
     model = get(model, constants)
     bounds = default_bounds(model) if bounds is None else bounds
     check_bounds(bounds, model)
-    train, held = split(data, validate_incidences)
+    train, held = split(with_loss(data, loss), validate_incidences)
     prob = problem(train, model)
     timings, history, evaluations = {}, np.zeros(0), 0
     begin = time.perf_counter()
@@ -181,7 +194,8 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
         steps, success = np.asarray(polished.steps), np.asarray(polished.success)
         evaluations += lm_evaluations
     timings["total"] = time.perf_counter() - begin
-    return fit_result(data, train, held, np.asarray(best, dtype=float), bounds, model,
+    return fit_result(with_loss(data, loss), train, held, np.asarray(best, dtype=float),
+                      bounds, model, loss=loss,
                       geometry=None if len(held) else prob.scene, method=method,
                       status=status, evaluations=evaluations, lm_steps=steps,
                       lm_success=success, timings=timings, history=history)

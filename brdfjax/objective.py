@@ -111,6 +111,40 @@ def targets(data: Measurements) -> tuple[np.ndarray, np.ndarray]:
     return target, weight
 
 
+LOSSES = ("eq6", "relative", "balanced")
+# The relative loss's floor, as a fraction of the largest |f_r0 cos tr|: points near zero
+# are not weighted beyond 1 / floor^2.
+RELATIVE_FLOOR = 0.01
+
+
+def with_loss(data: Measurements, loss: str) -> Measurements:
+    """``data`` with the weights of Eq. (6) that make it minimise ``loss``.
+
+    ``eq6`` leaves the data as they are (the paper's weights 1, or the file's); ``relative``
+    weights each point by ``1 / (y^2 + floor^2)`` (y the projected measurement, floor
+    `RELATIVE_FLOOR` of the largest), so that E is the mean squared relative error;
+    ``balanced`` weights each incidence by ``1 / sum y^2`` over its points, so that every
+    incidence counts alike. Any weights of the file multiply these.
+    """
+    import dataclasses
+
+    if loss not in LOSSES:
+        raise ValueError(f"unknown loss {loss!r}; choose one of {', '.join(LOSSES)}")
+    if loss == "eq6":
+        return data
+    target = data.brdf * np.cos(data.theta_r)
+    if loss == "relative":
+        floor = RELATIVE_FLOOR * np.max(np.abs(target))
+        weight = 1.0 / (target**2 + floor**2)
+    else:
+        degrees = np.round(np.degrees(data.theta_i), 6)
+        totals = {d: np.sum(target[degrees == d] ** 2) for d in np.unique(degrees)}
+        weight = np.array([1.0 / totals[d] if totals[d] > 0 else 0.0 for d in degrees])
+    if data.weights is not None:
+        weight = weight * data.weights
+    return dataclasses.replace(data, weights=weight)
+
+
 def relative_error(model_projected, target, weight) -> float:
     """E of Eq. (6) on host arrays (for reporting on any subset of points)."""
     return float(np.sum(weight * (model_projected - target) ** 2) / np.sum(weight * target**2))

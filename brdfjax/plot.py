@@ -12,6 +12,8 @@ and the posterior's corner plot (`plot_corner`, with the ``corner`` package).
 
 from __future__ import annotations
 
+import textwrap
+
 import numpy as np
 
 
@@ -37,7 +39,7 @@ def curve_angles(incidence_deg: float, count: int = 361):
 
 
 def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: bool = False,
-             model=None):
+             model=None, predictive=None, errors=None):
     """Data points and fitted curves of f_r cos(theta_r), one colour per incidence.
 
     Args:
@@ -46,7 +48,10 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
         path: output image file (PNG, PDF or SVG by suffix).
         title: figure title.
         held_out: incidences (deg) not used in the fit, drawn hollow and dashed.
-        bands: optional ``{incidence: (signed_deg, lo68, hi68, lo95, hi95)}`` to shade.
+        bands: optional ``{incidence: (signed_deg, lo68, hi68, lo95, hi95)}`` to shade: the
+            curve bands (darker).
+        predictive: the same form for predictive bands (lighter, drawn under the others).
+        errors: ``{incidence: E}`` shown in the legend (a fraction; printed in %).
         log: log-scale the vertical axis (for dark samples with a strong peak).
         model: a model name or `brdfjax.models.Model` (the five-parameter model if None).
     """
@@ -59,12 +64,19 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
     for colour, incidence in zip(colours, data.incidences_deg):
         subset = data.at_incidences([incidence])
         is_held = round(float(incidence), 6) in held
+        error = (errors or {}).get(float(incidence))
         ax.plot(signed_angle_deg(subset), subset.brdf * np.cos(subset.theta_r),
                 "o", ms=3, mfc="none" if is_held else colour, mec=colour,
-                label=f"{incidence:g} deg data" + (" (held out)" if is_held else ""))
+                label=f"{incidence:g} deg data" + (" (held out)" if is_held else "")
+                + ("" if error is None else f", E {100 * error:.3g} %"))
         angles, signed = curve_angles(incidence)
         curve = np.asarray(projected_brdf(np.asarray(params, float), *angles, model=model))
         ax.plot(signed, curve, "--" if is_held else "-", color=colour, lw=1.5)
+        if predictive and incidence in predictive:
+            x, _, _, lo95, hi95 = predictive[incidence]
+            if log:  # a band reaching zero or below ends at the bottom of the data's decades
+                lo95 = np.maximum(lo95, 0.1 * np.min(curve[curve > 0], initial=np.inf))
+            ax.fill_between(x, lo95, hi95, color=colour, alpha=0.08, lw=0)
         if bands and incidence in bands:
             x, lo68, hi68, lo95, hi95 = bands[incidence]
             ax.fill_between(x, lo95, hi95, color=colour, alpha=0.15, lw=0)
@@ -73,7 +85,7 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
     ax.set_ylabel("f_r cos(theta_r)  (1/sr)")
     if log:
         ax.set_yscale("log")
-    ax.set_title(title or data.name)
+    ax.set_title(textwrap.fill(title or data.name, 80), fontsize=10)
     ax.legend(fontsize=7, ncol=2)
     ax.grid(alpha=0.3)
     fig.tight_layout()

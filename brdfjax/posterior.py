@@ -317,8 +317,13 @@ class UncertaintyResult:
             "timings": self.timings,
         }
 
-    def table(self) -> str:
-        """A readable table of the intervals, the strongest correlations and any warnings."""
+    def table(self, fitted=None) -> str:
+        """A readable table of the intervals, the strongest correlations and any warnings.
+
+        With the ``fitted`` parameters (the Eq. 6 optimum), a ``fit`` column stands beside
+        the posterior ``median``, and a fitted value outside its own 95 % interval is
+        marked and explained on the spot.
+        """
         noise = self.noise["model"]
         for name in NOISE_NAMES:
             if name in self.noise:
@@ -326,16 +331,29 @@ class UncertaintyResult:
                 noise += (f", {name} {self.noise[name]['median']:.3g} " +
                           ("(at the edge of its prior)" if interval is None else
                            f"[{interval[0]:.3g}, {interval[1]:.3g}]"))
-        lines = [f"uncertainty ({self.method}, {self.status}); noise: {noise}",
-                 "  (the likelihood weights points by 1/variance, Eq. 6 alike: medians "
-                 + "need not equal the fit)",
-                 f"  {'':>3} {'median':>12} {'std':>11}   {'68 % interval':<27} 95 % interval"]
         names = self.model.names
         width = max(3, *map(len, names))
-        lines[-1] = lines[-1].replace(f"  {'':>3} ", f"  {'':>{width}} ", 1)
+        fit_header = "" if fitted is None else f" {'fit (Eq. 6)':>12}"
+        lines = [f"uncertainty ({self.method}, {self.status}); noise: {noise}",
+                 "  (median: the posterior's, whose likelihood weights points by 1/variance; "
+                 + "fit: the Eq. (6) optimum, which weights them alike)",
+                 (f"  {'':>{width}}{fit_header} {'median':>12} {'std':>11}   "
+                 f"{'68 % interval':<27} 95 % interval")]
+        outside = []
         for k, name in enumerate(names):
-            lines.append(f"  {name:>{width}} {self.median[k]:12.6g} {self.std[k]:11.4g}   "
-                         f"{_interval(self.ci68[k]):<27} {_interval(self.ci95[k])}")
+            fit_cell = ""
+            if fitted is not None:
+                fit_cell = f" {fitted[k]:12.6g}"
+                if not self.ci95[k][0] <= fitted[k] <= self.ci95[k][1]:
+                    fit_cell += "*"
+                    outside.append(name)
+            lines.append(f"  {name:>{width}}{fit_cell} {self.median[k]:12.6g} "
+                         f"{self.std[k]:11.4g}   {_interval(self.ci68[k]):<27} "
+                         f"{_interval(self.ci95[k])}")
+        if outside:
+            lines.append(f"  * the fit's {', '.join(outside)} lies outside its 95 % interval: "
+                         "the interval is about the posterior, which weights points by their "
+                         "noise, not about the Eq. (6) optimum")
         size = len(names)
         pairs = sorted(((abs(self.correlation[i, j]), i, j) for i in range(size)
                         for j in range(i + 1, size)), reverse=True)[:3]

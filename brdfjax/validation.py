@@ -10,7 +10,10 @@ all the others, and scores the held-out incidence alone with E of Eq. (6):
 - folds holding out the smallest or the largest incidence measure extrapolation and are
   reported separately.
 
-All folds are samples of one `brdfjax.batch.fit_batch` call, not a loop of fits.
+All folds are samples of one `brdfjax.batch.fit_batch` call, not a loop of fits. The
+folds fit whatever loss the data's weights carry (`brdfjax.objective.with_loss`); the
+held-out E is always the paper's Eq. (6) with weights 1, so that models and losses compare
+on one scale.
 
 Scattered geometry, where incidences hardly repeat (NIST's random-direction PTFE set has
 1760 points at 1760 incidences), is grouped into `SCATTERED_BINS` bins of equal point
@@ -170,7 +173,8 @@ def cross_validate(data: Measurements, model=None, *, seed: int = 0, bounds=None
                         hint="measure more incidences, or skip --cv")
     samples = [data.select(~mask) for _, _, _, mask in groups]
     results = fit_batch(samples, model=model, seed=seed, bounds=bounds, **options)
-    target, weight = targets(data)
+    target, _ = targets(data)
+    weight = np.ones_like(target)  # cv_error is E of Eq. (6) whatever loss the folds fit
     geometry, cos_r = prepare(data, model), np.cos(data.theta_r)
     folds = []
     for k, ((label, low, high, mask), result) in enumerate(zip(groups, results)):

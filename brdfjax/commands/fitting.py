@@ -22,6 +22,8 @@ UNCERTAINTY_METHODS = ("none", "laplace", "mcmc")
 REFLECTANCE_INCIDENCES = tuple(range(0, 90, 10))
 # Incidences (deg) of the reflectance line of the printed summary.
 SUMMARY_INCIDENCES = (0.0, 30.0, 60.0)
+# An incidence whose E exceeds the overall E by more than this factor gets a warning.
+INCIDENCE_WARNING = 3.0
 FILE_HELP = ("the measurement file: brdfjax .csv, NIST PTFE .csv, J&C RT-300S .xls or "
              "Zemax .bsdf")
 SEED_HELP = ("seeds the genetic search, the random starts and the uncertainty's draws: the "
@@ -66,6 +68,11 @@ def register(subparsers) -> None:
     p.add_argument("--plot-corner", metavar="OUT",
                    help="corner plot of the parameters' posterior (PNG; needs --uncertainty "
                         "laplace or mcmc)")
+    p.add_argument("--loss", choices=("eq6", "relative", "balanced"), default="eq6",
+                   help="what the fit minimises: eq6, E of Eq. (6) (default); relative, each "
+                        "point's relative error; balanced, each incidence weighted equally "
+                        "(for data spanning decades, where Eq. 6 follows the brightest "
+                        "incidence); cv_error is always Eq. (6)")
     p.add_argument("--cv", action="store_true",
                    help="cross-validate by incidence: hold out each incidence in turn and "
                         "report its E (all folds one batched fit)")
@@ -144,7 +151,7 @@ def run_fit(args) -> None:
     data = load(args.file, **reader_options(args))
     if args.model == "auto":
         args.model = choose_model(data, args.seed)
-    result = fit(data, args.method, model=args.model, seed=args.seed,
+    result = fit(data, args.method, model=args.model, seed=args.seed, loss=args.loss,
                  validate_incidences=held_out(data, args),
                  bounds=make_bounds(parse_bounds(args.bound), model=args.model))
     print(summary(result, data.name))
@@ -155,12 +162,11 @@ def run_fit(args) -> None:
 
             write_atomically(args.json, json.dumps(result.to_dict(), indent=2) + "\n")
         raise ValueError(f"{args.file}: the fit failed: {result.message}")
-    if args.cv or args.predict:
-        validate_and_predict(result, data, args)
+    calibration = validate_and_predict(result, data, args) if args.cv or args.predict else None
     uncertainty = estimate_uncertainty(result, data, args)
     if uncertainty is not None:
-        print(uncertainty.table())
-    write_outputs(result, data, args, uncertainty)
+        print(uncertainty.table(fitted=result.vector))
+    write_outputs(result, data, args, uncertainty, calibration)
 
 
 def failure_reason(data) -> str:
@@ -192,8 +198,12 @@ def choose_model(data, seed: int) -> str:
     return comparison.best.name
 
 
-def validate_and_predict(result, data, args) -> None:
-    """``--cv`` prints the cross-validation; ``--predict`` writes the predictive intervals."""
+def validate_and_predict(result, data, args):
+    """``--cv`` prints the cross-validation; ``--predict`` writes the predictive intervals.
+
+    Returns:
+        The conformal `brdfjax.prediction.Calibration` (for the plot's predictive bands).
+    """
     from brdfjax.formats import load_geometry, write_atomically
     from brdfjax.prediction import calibrate, predict
     from brdfjax.validation import cross_validate
@@ -202,9 +212,10 @@ def validate_and_predict(result, data, args) -> None:
                                 bounds=result.bounds)
     if args.cv:
         print(validation.table())
+    calibration = calibrate(result.training, validation)
     if args.predict:
         geometry = load_geometry(args.predict, **reader_options(args))
-        prediction = predict(result, geometry, calibrate(result.training, validation))
+        prediction = predict(result, geometry, calibration)
         write_atomically(args.predict_out, prediction.to_csv())
         line = f"predictions at {len(geometry)} points written to {args.predict_out}"
         if prediction.measured is not None:
@@ -212,6 +223,24 @@ def validate_and_predict(result, data, args) -> None:
                      f"{100 * prediction.coverage('95'):.1f} %, 68 %: "
                      f"{100 * prediction.coverage('68'):.1f} %")
         print(line)
+    return calibration
+
+
+def predictive_bands(result, incidences_deg, calibration) -> dict:
+    """Predictive 68/95 % bands of ``f_r cos(theta_r)`` along the plot's in-plane curves."""
+    from brdfjax.measurements import Measurements
+    from brdfjax.plot import curve_angles
+    from brdfjax.prediction import predict
+
+    bands = {}
+    for incidence in incidences_deg:
+        angles, signed = curve_angles(incidence)
+        geometry = Measurements(*angles, np.full(signed.size, np.nan))
+        prediction = predict(result, geometry, calibration)
+        cos_r = np.cos(angles[1])
+        bands[incidence] = (signed, *(getattr(prediction, k) * cos_r
+                                      for k in ("lo68", "hi68", "lo95", "hi95")))
+    return bands
 
 
 def estimate_uncertainty(result, data, args):
@@ -241,12 +270,16 @@ def estimate_uncertainty(result, data, args):
                                 seed=args.seed, chain_path=args.chain)
 
 
-def write_outputs(result, data, args, uncertainty=None) -> None:
+def write_outputs(result, data, args, uncertainty=None, calibration=None) -> None:
     """The files asked for, each written whole or not at all, after all computing is done.
 
     With an ``uncertainty`` result, --json gains an "uncertainty" entry (parameter
-    intervals and the reflectance's at `REFLECTANCE_INCIDENCES`), --plot draws the posterior
-    medians' curves in 68 % and 95 % bands, and --plot-corner draws the posterior.
+    intervals and the reflectance's at `REFLECTANCE_INCIDENCES`), --plot draws its 68 % and
+    95 % curve bands around the fitted curves (not where the approximation is
+    untrustworthy: the reason is printed instead), and --plot-corner draws the posterior.
+    With a ``calibration`` (--cv or --predict), --plot also draws the lighter predictive
+    bands: where a new measurement falls (`brdfjax.prediction`). Data that are not in the
+    plane of incidence are drawn as polar maps of data, model and residual.
     """
     from brdfjax.formats import replace_atomically, write_atomically
 
@@ -260,26 +293,44 @@ def write_outputs(result, data, args, uncertainty=None) -> None:
             record["uncertainty"]["reflectance"] = reflectance_bands(
                 uncertainty.samples, REFLECTANCE_INCIDENCES, model=result.model,
                 seed=args.seed).to_dict()
-        if args.plot:
+        if args.plot and uncertainty.status in ("ok", "converged"):
             bands = curve_bands(uncertainty.samples, data.incidences_deg,
                                 model=result.model)
+        elif args.plot and data.in_plane:
+            print(f"plot: no curve band drawn, the {uncertainty.method} result is "
+                  f"{uncertainty.status.replace('_', ' ')} (see its warnings above)")
     if args.json:
         write_atomically(args.json, json.dumps(record, indent=2) + "\n")
-    if args.plot:
+    if args.plot and not data.in_plane:
+        from brdfjax.objective import brdf_values, prepare
+        from brdfjax.plot import plot_polar_maps
+
+        predicted = np.asarray(brdf_values(result.vector, prepare(data, result.model),
+                                           result.model))
+        replace_atomically(args.plot, lambda path: plot_polar_maps(
+            data, predicted, path, title=f"{data.name}: {result.model.name} fit, "
+                                         f"E = {100 * result.error:.3g} %"))
+    elif args.plot:
         from brdfjax.plot import plot_fit
 
-        # With bands, the curves are the posterior's (its medians), which the bands surround;
-        # without, the fit's.
+        errors = {**result.error_by_incidence, **result.validation_by_incidence}
+        predictive = (None if calibration is None else
+                      predictive_bands(result, data.incidences_deg, calibration))
+        kinds = " and ".join(name for name, shown in (
+            ("curve bands (darker)", bands), ("predictive bands (lighter)", predictive))
+            if shown)
         replace_atomically(args.plot, lambda path: plot_fit(
-            data, result.vector if bands is None else uncertainty.median, path, model=result.model,
+            data, result.vector, path, model=result.model,
             held_out=result.validation_incidences, log=args.log, bands=bands,
-            title=f"{data.name}: E = {100 * result.error:.3g} %" if bands is None else
-            f"{data.name}: {uncertainty.method} posterior medians, 68/95 % bands"))
+            predictive=predictive, errors=errors,
+            title=f"{data.name}: {result.model.name} fit, E = {100 * result.error:.3g} %"
+                  + (f"; 68/95 % {kinds}" if kinds else "")))
     if args.plot_3d:
         from brdfjax.plot import plot_hemisphere
 
-        incidences = (args.incidences_3d if args.incidences_3d is not None
-                      else data.incidences_deg[:3])
+        incidences = data.incidences_deg  # spread over the data's range by default
+        incidences = (args.incidences_3d if args.incidences_3d is not None else incidences[
+            np.unique(np.round(np.linspace(0, len(incidences) - 1, 3)).astype(int))])
         replace_atomically(args.plot_3d, lambda path: plot_hemisphere(
             result.vector, incidences, path, title=f"{data.name}: fitted {result.model.name} "
                                                    "model", model=result.model))
@@ -288,6 +339,25 @@ def write_outputs(result, data, args, uncertainty=None) -> None:
 
         replace_atomically(args.plot_corner, lambda path: plot_corner(
             uncertainty, path, title=f"{data.name}: {uncertainty.method} posterior"))
+
+
+def incidence_lines(errors: dict, result) -> list[str]:
+    """One line of E per incidence; for scattered incidences, per incidence bin."""
+    from brdfjax.validation import MAX_FOLDS, incidence_groups
+
+    if len(errors) <= MAX_FOLDS:
+        return [f"        {deg:6g} deg: E = {100 * e:.4g} %" for deg, e in errors.items()]
+    from brdfjax.objective import prepare, projected, relative_error, targets
+
+    data = result.training
+    fitted = np.asarray(projected(result.vector, prepare(data, result.model), result.model))
+    target, weight = targets(data)
+    lines = [f"        {len(errors)} distinct incidences (scattered); E by incidence bin:"]
+    for label, _, _, mask in incidence_groups(data):
+        lines.append(f"        {label:>9} deg: E = "
+                     f"{100 * relative_error(fitted[mask], target[mask], weight[mask]):.4g} % "
+                     f"({mask.sum()} points)")
+    return lines
 
 
 def summary(result, name: str) -> str:
@@ -303,12 +373,16 @@ def summary(result, name: str) -> str:
                                                else "") for k, v in zip(names, result.params)]
     lines.append(f"  {'E':<{width}} = {100 * result.error:.4g} % on {len(result.residuals)} points "
                  f"(incidences {', '.join(f'{x:g}' for x in result.train_incidences)} deg)")
-    for deg, e in result.error_by_incidence.items():
-        lines.append(f"        {deg:6g} deg: E = {100 * e:.4g} %")
+    lines += incidence_lines(result.error_by_incidence, result)
+    worst = max(result.error_by_incidence.items(), key=lambda item: item[1], default=None)
+    if worst is not None and worst[1] > INCIDENCE_WARNING * result.error:
+        lines.append(f"  warning: at {worst[0]:g} deg E = {100 * worst[1]:.3g} %, more than "
+                     f"{INCIDENCE_WARNING:g}x the overall {100 * result.error:.3g} %: the "
+                     "overall E hides a poor fit there (Eq. 6 is dominated by the brightest "
+                     "incidences; try another --model, or --loss balanced)")
     if result.validation_error is not None:
         lines.append(f"  held out: E = {100 * result.validation_error:.4g} %")
-        for deg, e in result.validation_by_incidence.items():
-            lines.append(f"        {deg:6g} deg: E = {100 * e:.4g} %")
+        lines += incidence_lines(result.validation_by_incidence, result)
     rho = np.asarray(reflectance(result.params, np.radians(SUMMARY_INCIDENCES),
                                  model=result.model))
     lines.append("  reflectance rho(" + ", ".join(f"{x:g}" for x in SUMMARY_INCIDENCES)
