@@ -60,10 +60,11 @@ def test_reflectance_flags_energy_creation(capsys):
     expected = independent_rho(PAPER_SAMPLES["polyimide"], [0.0])[0]  # 7.60873...
     assert printed == pytest.approx(expected, rel=1e-6, abs=5e-7)  # %.6f
     assert f"warning: reflectance up to {expected:.3f} > 1" in out
-    with pytest.raises(SystemExit) as stop:  # argparse: five numbers needed
-        main(["reflectance", "--params", "1,2"])
-    assert stop.value.code == 2
-    assert "give five numbers" in capsys.readouterr().err
+    # the model's parameter count is checked once the model is known: a user error, exit 1
+    assert main(["reflectance", "--params", "1,2"]) == 1
+    assert "give 5 numbers kb,kr,a,b,kd for the five model" in capsys.readouterr().err
+    assert main(["reflectance", "--params", "1,2", "--model", "ggx"]) == 1
+    assert "give 4 numbers ks,alpha,f0,kd for the ggx model" in capsys.readouterr().err
 
 
 def test_fit_writes_json_and_plots(tmp_path, capsys):
@@ -138,7 +139,7 @@ def test_every_argument_has_help():
     assert list(missing(build_parser(), ["brdfjax"])) == []
 
 
-def test_a_failed_fit_exits_1_with_the_reason_and_no_raw_warning(tmp_path, capsys):
+def test_an_extreme_value_is_refused_before_the_fit_with_no_raw_warning(tmp_path, capsys):
     lines = (DATA / "synthetic" / "white_paint.csv").read_text().splitlines()
     first = next(k for k, line in enumerate(lines) if line[:1].isdigit())
     cells = lines[first].split(",")
@@ -151,11 +152,31 @@ def test_a_failed_fit_exits_1_with_the_reason_and_no_raw_warning(tmp_path, capsy
         code = main(["fit", str(path), "--uncertainty", "none", "--json", str(out)])
     assert code == 1
     captured = capsys.readouterr()
-    assert "status failed" in captured.out
-    assert "the fit failed" in captured.err and "brdf = 1e+308" in captured.err
+    assert captured.out == "" and not out.exists()
+    assert captured.err.startswith(f"brdfjax fit: error: {path}:{first + 1}: ")
     assert "Warning" not in captured.err
+
+
+def test_a_failed_fit_exits_1_with_the_reason(tmp_path, capsys, monkeypatch):
+    """A fit whose status is failed (no finite E anywhere) exits 1; its JSON says why."""
+    import dataclasses
+
+    import brdfjax.fitting
+
+    real = brdfjax.fitting.fit
+
+    def failing(*args, **kwargs):
+        return dataclasses.replace(real(*args, **kwargs), status="failed", error=float("nan"))
+
+    monkeypatch.setattr(brdfjax.fitting, "fit", failing)
+    out = tmp_path / "fit.json"
+    code = main(["fit", str(DATA / "synthetic" / "white_paint.csv"), "--uncertainty", "none",
+                 "--json", str(out)])
+    assert code == 1
+    captured = capsys.readouterr()
+    assert "status failed" in captured.out and "the fit failed" in captured.err
     record = json.loads(out.read_text())
-    assert record["status"] == "failed" and "brdf = 1e+308" in record["message"]
+    assert record["status"] == "failed" and "no Levenberg-Marquardt start" in record["message"]
 
 
 def test_numerical_warnings_become_one_line_each(monkeypatch, capsys):

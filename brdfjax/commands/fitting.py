@@ -156,7 +156,7 @@ def run_fit(args) -> None:
                  bounds=make_bounds(parse_bounds(args.bound), model=args.model))
     print(summary(result, data.name))
     if result.status == "failed":
-        result = dataclasses.replace(result, message=failure_reason(data))
+        result = dataclasses.replace(result, message=failure_reason())
         if args.json:
             from brdfjax.formats import write_atomically
 
@@ -169,21 +169,12 @@ def run_fit(args) -> None:
     write_outputs(result, data, args, uncertainty, calibration)
 
 
-def failure_reason(data) -> str:
-    """Why a fit of ``data`` found no finite E of Eq. (6), in words a user can act on."""
-    from brdfjax.objective import targets
+def failure_reason() -> str:
+    """Why a fit found no finite E of Eq. (6), in words a user can act on.
 
-    target, weight = targets(data)
-    with np.errstate(over="ignore", invalid="ignore"):
-        scale = np.sum(weight * target**2)  # the denominator of Eq. (6)
-    if not np.isfinite(scale):
-        k = int(np.argmax(np.where(np.isfinite(target), np.abs(target), np.inf)))
-        where = ", ".join(f"{name} {np.degrees(angle[k]):g}" for name, angle in
-                          (("theta_i", data.theta_i), ("theta_r", data.theta_r),
-                           ("phi_r", data.phi_r)))
-        return (f"E of Eq. (6) divides by the sum of the squared measurements, which "
-                f"overflows: brdf = {data.brdf[k]:.4g} 1/sr at {where} deg is far too large "
-                "(a corrupt value or a wrong unit?); correct or remove that point")
+    (Extreme values that would overflow Eq. 6 are refused when the data are read,
+    `brdfjax.measurements.validate`, so a failed fit is the model's doing.)
+    """
     return ("no Levenberg-Marquardt start reached a finite E of Eq. (6): the model "
             "overflowed or gave NaN wherever it was tried; check the data for extreme "
             "values, or narrow the search box with --bound")

@@ -20,6 +20,7 @@ from brdfjax.geometry import PAPER_CONSTANTS, Scene, ShadowingConstants, scene
 from brdfjax.models.base import Model, Parameter, array_module
 
 PARAMETER_NAMES = ("kb", "kr", "a", "b", "kd")
+"""The parameters' names, in the order of every array, file and table."""
 
 # Where the Fresnel-free polish start puts a (see `FiveParameter.extra_starts`).
 FRESNEL_FREE_A = 0.04
@@ -56,6 +57,7 @@ PAPER_SAMPLES = {
     "forged_steel": Params(kb=0.072, kr=16.125, a=0.959, b=-29.917, kd=0.081),
     "polyimide": Params(kb=5.439, kr=3.257, a=0.495, b=-23.098, kd=2.267),
 }
+"""The paper's fitted `Params` of its five samples (Section 4, 1.06 um), by sample name."""
 PAPER_ERRORS_PERCENT = {"white_paint": 4.17, "cement": 5.98, "khaki_paint": 0.69,
                         "forged_steel": 0.95, "polyimide": 10.1}
 
