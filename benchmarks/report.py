@@ -25,10 +25,35 @@ with `make bench`.
 """
 
 
+# Only the footer of a run that writes: ``--quick`` runs set this and print instead.
+DRY_RUN = False
+VERSIONED = ("jax", "jaxlib", "optimistix", "numpy", "scipy", "emcee", "pygad")
+
+
+def versions() -> str:
+    """``jax 0.10.2, jaxlib 0.10.2, ...`` for every library a benchmark's numbers depend on."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    def one(name):
+        try:
+            return f"{name} {version(name)}"
+        except PackageNotFoundError:
+            return f"{name} not installed"
+
+    return ", ".join(one(name) for name in VERSIONED)
+
+
+def load_average() -> str:
+    """The 1-minute load average now, and the core count (above it, timings are inflated)."""
+    try:
+        return f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores"
+    except OSError:
+        return "unknown"
+
+
 def machine() -> str:
     """A one-line description of this machine and the library versions that matter."""
     import jax
-    import numpy
 
     cpu = platform.processor() or platform.machine()
     try:
@@ -39,16 +64,23 @@ def machine() -> str:
     except OSError:
         pass
     return (f"{os.cpu_count()} cores ({cpu}), Python {platform.python_version()}, "
-            f"jax {jax.__version__} on {jax.default_backend()}, numpy {numpy.__version__}")
+            f"JAX on {jax.default_backend()}; {versions()}")
 
 
 def write_section(name: str, body: str) -> None:
-    """Replace (or append) the section ``name`` of BENCHMARKS.md with ``body``."""
+    """Replace (or append) the section ``name`` of BENCHMARKS.md with ``body``.
+
+    With `DRY_RUN` set (``--quick``), print the section and leave BENCHMARKS.md alone.
+    """
     command = "python " + " ".join([os.path.relpath(sys.argv[0])] + sys.argv[1:])
     stamp = datetime.date.today().isoformat()
     section = (f"<!-- begin {name} -->\n{body.rstrip()}\n\n"
-               f"*Machine: {machine()}. Command: `{command}`. Date: {stamp}.*\n"
+               f"*Machine: {machine()}. Command: `{command}`. Date: {stamp}. "
+               f"Load average (1 min) when written: {load_average()}.*\n"
                f"<!-- end {name} -->")
+    if DRY_RUN:
+        print(f"--quick: not written to BENCHMARKS.md:\n{section}")
+        return
     text = BENCHMARKS.read_text() if BENCHMARKS.exists() else PREAMBLE
     pattern = re.compile(rf"<!-- begin {re.escape(name)} -->.*?<!-- end {re.escape(name)} -->",
                          re.DOTALL)

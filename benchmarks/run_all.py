@@ -4,7 +4,7 @@
 
 Timings share the machine's cores, so the scripts run in turn, never side by side. Each
 writes its sections of BENCHMARKS.md itself (``--quick`` runs write nothing where the
-script says so). About an hour on a 2-core machine.
+script says so). About an hour and a half on a 2-core machine.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-SCRIPTS = ("bench_fit.py", "bench_uncertainty.py", "bench_batch.py")
+SCRIPTS = ("bench_fit.py", "bench_uncertainty.py", "bench_batch.py", "bench_models.py")
 
 
 def main() -> int:
