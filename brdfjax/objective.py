@@ -219,9 +219,10 @@ def solve_linear(params, prob: Problem, bounds: Bounds):
     count = len(scaled)
     gram = [[None] * count for _ in range(count)]
     for i in range(count):
-        for j in range(i, count):  # entry by entry: a column without parameters stays one
-            gram[i][j] = gram[j][i] = jnp.sum(w * scaled[i] * scaled[j])
-    projections = [jnp.sum(w * s * t) for s in scaled]
+        for j in range(i, count):  # entry by entry: a column without parameters stays one,
+            # and a product with it is a matrix product under vmap
+            gram[i][j] = gram[j][i] = (w * scaled[j]) @ scaled[i]
+    projections = [(w * t) @ s for s in scaled]
     to_x = jnp.stack([jnp.asarray(x, dtype=c.dtype) for x in to_x])
     low, high = model.coefficient_bounds(bounds)
     x, value = box_least_squares(gram, projections, jnp.sum(w * t * t), low * to_x, high * to_x)
