@@ -270,3 +270,29 @@ def test_a_rerun_never_reads_its_own_outputs_and_draws_one_bar(tmp_path, capsys)
     assert out.read_text() == written
     with pytest.raises(ValueError, match="is this batch's output"):
         expand([str(out)], outputs=[str(out)])
+
+
+def test_every_wavelength_is_a_sample_with_its_own_row(tmp_path, capsys):
+    """NIST PTFE at two of its wavelengths: one row each, a wavelength_nm column, the Lambert
+    kd equal to its closed form sum(f cos^2) / sum(cos^2), a resume with nothing to do, and
+    the parameters-against-wavelength plot."""
+    from brdfjax.cli import main
+    from brdfjax.formats import load_spectral
+
+    source = DATA / "real" / "nist-germer-ptfe" / "PTFE.data.csv"
+    out, plot = tmp_path / "results.csv", tmp_path / "spectral.png"
+    command = ["batch", str(source), "--wavelength", "351,1064", "--model", "lambert",
+               "--out", str(out), "--plot", str(plot), *CLI_SMALL]
+    assert main(command) == 0
+    table = rows(out.read_text())
+    assert [r["wavelength_nm"] for r in table] == ["351", "1064"]
+    assert {r["model"] for r in table} == {"lambert"}
+    spectra = load_spectral(source, [351.0, 1064.0])
+    for record, data in zip(table, spectra.values()):
+        cos2 = np.cos(data.theta_r) ** 2
+        assert float(record["kd"]) == pytest.approx(np.sum(data.brdf * cos2) / np.sum(cos2),
+                                                    rel=1e-9)
+    assert plot.stat().st_size > 0
+    capsys.readouterr()
+    assert main(command) == 0
+    assert "2 of 2 inputs already done; nothing left to fit" in capsys.readouterr().err

@@ -60,16 +60,27 @@ def reader_options(args) -> dict:
     options = {}
     if getattr(args, "blank", None):
         options["blank"] = args.blank
-    if getattr(args, "wavelength", None) is not None:
-        options["wavelength_nm"] = args.wavelength
+    wavelength = getattr(args, "wavelength", None)
+    if wavelength is not None:
+        try:  # batch's --wavelength may also be "all" or a list (one sample each)
+            options["wavelength_nm"] = float(wavelength)
+        except ValueError:
+            pass
     return options
 
 
-def add_reader_options(parser) -> None:
+def add_reader_options(parser, spectral: bool = False) -> None:
     parser.add_argument("--blank", help="RT-300S blank .xls to subtract (default: the "
                                         "blank_*.xls beside the file)")
-    parser.add_argument("--wavelength", type=float, metavar="NM",
-                        help="wavelength to read from multi-wavelength files (NIST, Zemax)")
+    if spectral:
+        parser.add_argument("--wavelength", metavar="NM|all|NM,NM",
+                            help="multi-wavelength files (NIST, ASTM, Zemax): read one "
+                                 "wavelength, or fit every wavelength (all) or those listed "
+                                 "as samples of their own, with a wavelength_nm column")
+    else:
+        parser.add_argument("--wavelength", type=float, metavar="NM",
+                            help="wavelength to read from multi-wavelength files (NIST, "
+                                 "Zemax, ASTM)")
 
 
 def check_writable(files: dict | None = None, folders: dict | None = None) -> None:

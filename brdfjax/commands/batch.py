@@ -57,7 +57,10 @@ def register(subparsers) -> None:
     for name, text in SEARCH_OPTIONS.items():
         p.add_argument(f"--{name.replace('_', '-')}", type=int, metavar="N",
                        help=f"{text} (default: as brdfjax fit)")
-    add_reader_options(p)
+    add_reader_options(p, spectral=True)
+    p.add_argument("--plot", metavar="OUT",
+                   help="with --wavelength all or a list: each parameter against wavelength, "
+                        "with Laplace standard errors when --uncertainty laplace (PNG)")
     p.set_defaults(run=run_batch)
 
 
@@ -124,7 +127,7 @@ def read_results(path, columns) -> dict:
             raise ValueError(f"{path}: exists but its columns are not {','.join(columns)}; "
                              "give another --out (or the same options as the run that "
                              "wrote it)")
-        return {row["file"]: row for row in reader}
+        return {sample_key(row["file"], row.get("wavelength_nm")): row for row in reader}
 
 
 def write_results(path, rows: dict, order, columns) -> None:
@@ -140,19 +143,40 @@ def write_results(path, rows: dict, order, columns) -> None:
     write_atomically(path, text.getvalue())
 
 
-def columns_of(names, uncertainty: bool) -> tuple:
-    """The CSV columns for a model's parameter ``names``, with or without uncertainty."""
-    columns = ("file", *names, "error", "status", "message", "model")
+def columns_of(names, uncertainty: bool, spectral: bool = False) -> tuple:
+    """The CSV columns for a model's parameter ``names``, with or without uncertainty, and
+    with a ``wavelength_nm`` column when every wavelength is its own sample."""
+    columns = ("file", *(("wavelength_nm",) if spectral else ()), *names, "error", "status",
+               "message", "model")
     if uncertainty:
         columns += (*(f"std_{name}" for name in names), "uncertainty_status")
     return columns
 
 
-def row(file: str, result: dict, columns, model: str) -> dict:
+def sample_key(file: str, wavelength_nm=None) -> str:
+    """How a sample is known in a batch: its file, or ``FILE@WAVELENGTHnm``."""
+    return file if wavelength_nm in (None, "") else f"{file}@{float(wavelength_nm):g}nm"
+
+
+def split_key(key: str) -> tuple[str, float | None]:
+    """The file and wavelength (or None) of a `sample_key`."""
+    file, at, wavelength = key.rpartition("@")
+    if at and wavelength.endswith("nm"):
+        try:
+            return file, float(wavelength[:-2])
+        except ValueError:
+            pass
+    return key, None
+
+
+def row(key: str, result: dict, columns, model: str) -> dict:
     """A CSV row from a `brdfjax.fitting.FitResult.to_dict` (numbers as exact reprs)."""
+    file, wavelength = split_key(key)
     values = {"file": file, **{k: repr(float(v)) for k, v in result["params"].items()},
               "error": repr(float(result["error"])), "status": result["status"],
               "message": result["message"], "model": model}
+    if "wavelength_nm" in columns:
+        values["wavelength_nm"] = "" if wavelength is None else f"{wavelength:g}"
     if "uncertainty_status" in columns:
         std = result.get("std", {})
         values.update({f"std_{k}": repr(float(std.get(k, float("nan"))))
@@ -171,9 +195,16 @@ def run_batch(args) -> int:
     if args.chunk_size < 1:
         raise ValueError(f"--chunk-size {args.chunk_size}: give at least 1")
     model = get(args.model)
-    columns = columns_of(model.names, bool(args.uncertainty))
+    spectral = spectral_request(args.wavelength)
+    columns = columns_of(model.names, bool(args.uncertainty), spectral is not None)
     files = expand(args.inputs, outputs=(args.out, args.json))
-    names = [Path(f).stem for f in files]
+    if spectral is not None:
+        check_writable({"--plot": args.plot})
+        files = spectral_samples(files, spectral)
+    elif args.plot:
+        raise ValueError("--plot draws parameters against wavelength: give --wavelength all "
+                         "or a list of wavelengths")
+    names = [json_name(f) for f in files]
     if args.json and len(set(names)) < len(names):
         clash = next(n for n in names if names.count(n) > 1)
         raise ValueError(f"--json: two inputs are named {clash!r}; give them separate runs")
@@ -220,7 +251,64 @@ def run_batch(args) -> int:
         record({})  # the last unreadable files, if no chunk came after them
     finally:
         progress.close()
+    if args.plot:
+        _plot_spectral(args.plot, [rows[key] for key in files if key in rows], model.names)
     return _summary(rows, files, lost)
+
+
+def spectral_request(text):
+    """``--wavelength`` of batch: None (one sample per file), ``"all"`` or a list of nm.
+
+    A single number keeps the old meaning (read that wavelength, one sample per file).
+    """
+    if text is None:
+        return None
+    if text.strip().lower() == "all":
+        return "all"
+    try:
+        values = [float(x) for x in text.split(",")]
+    except ValueError:
+        raise ValueError(f"--wavelength {text!r}: give all, a wavelength in nm, or a list "
+                         "such as 532,633") from None
+    return values if len(values) > 1 else None
+
+
+def spectral_samples(files, request) -> list[str]:
+    """One `sample_key` per wavelength of every file (a file that cannot be read stays one
+    key, and fails when it is loaded)."""
+    from brdfjax.formats import load_spectral
+    from brdfjax.measurements import DataError
+
+    keys = []
+    for file in files:
+        try:
+            found = load_spectral(file, None if request == "all" else request)
+        except (DataError, ValueError, OSError):
+            keys.append(file)
+            continue
+        keys += [sample_key(file, wavelength) for wavelength in found]
+    return keys
+
+
+def json_name(key: str) -> str:
+    """The --json file name of a sample: its file's stem, with its wavelength if any."""
+    file, wavelength = split_key(key)
+    return Path(file).stem + ("" if wavelength is None else f"_{wavelength:g}nm")
+
+
+def _plot_spectral(path, rows, names) -> None:
+    from brdfjax.formats import replace_atomically
+    from brdfjax.plot import plot_spectral
+
+    def number(text):
+        return float(text) if text not in ("", None) else None
+
+    records = [{"wavelength_nm": float(r["wavelength_nm"]),
+                "params": {k: float(r[k]) for k in names},
+                "std": {k: number(r.get(f"std_{k}")) for k in names}}
+               for r in rows if r["status"] != "failed" and r["wavelength_nm"] != ""]
+    if records:
+        replace_atomically(path, lambda out: plot_spectral(records, out, names))
 
 
 def _local_devices() -> list:
@@ -242,11 +330,17 @@ def _chunks(pending, args, unread: dict, names):
     from brdfjax.measurements import DataError
 
     chunk = []
-    for file in pending:
+    for key in pending:
+        file, wavelength = split_key(key)
         try:
-            chunk.append((file, load(file, **reader_options(args))))
+            if wavelength is None:
+                chunk.append((key, load(file, **reader_options(args))))
+            else:
+                from brdfjax.formats import load_spectral
+
+                chunk.append((key, load_spectral(file, [wavelength])[wavelength]))
         except (DataError, ValueError, OSError) as error:
-            unread[file] = {"params": dict.fromkeys(names, float("nan")),
+            unread[key] = {"params": dict.fromkeys(names, float("nan")),
                             "error": float("nan"), "status": "failed", "message": str(error)}
         if len(chunk) == args.chunk_size:
             yield chunk
@@ -289,9 +383,11 @@ def _write_json(directory, batch: dict) -> None:
 
     from brdfjax.formats import write_atomically
 
-    for file, result in batch.items():
-        write_atomically(Path(directory) / f"{Path(file).stem}.json",
-                         json.dumps({"file": file, **result}, indent=2) + "\n")
+    for key, result in batch.items():
+        file, wavelength = split_key(key)
+        record = {"file": file, **({} if wavelength is None else {"wavelength_nm": wavelength})}
+        write_atomically(Path(directory) / f"{json_name(key)}.json",
+                         json.dumps({**record, **result}, indent=2) + "\n")
 
 
 def _summary(rows: dict, files, lost) -> int:
