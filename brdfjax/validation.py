@@ -82,10 +82,12 @@ class CrossValidation:
         folds: every `Fold`, in incidence order.
         cv_error: mean held-out E over the interior folds (NaN without interior folds).
         extrapolation_error: mean held-out E over the two end folds.
+        full: the fit on all the data (a `brdfjax.fitting.FitResult`), when asked for.
     """
 
     model: str
     folds: list
+    full: object = field(default=None, repr=False)
 
     @property
     def interior(self) -> list:
@@ -148,7 +150,7 @@ def incidence_groups(data: Measurements) -> list[tuple[str, float, float, np.nda
 
 
 def cross_validate(data: Measurements, model=None, *, seed: int = 0, bounds=None,
-                   **options) -> CrossValidation:
+                   full_fit: bool = False, **options) -> CrossValidation:
     """Leave-one-incidence-out cross-validation of a model, all folds in one batched fit.
 
     Args:
@@ -156,6 +158,8 @@ def cross_validate(data: Measurements, model=None, *, seed: int = 0, bounds=None
         model: a model name or `brdfjax.models.Model` (the five-parameter model if None).
         seed: the seed of every fold's fit.
         bounds: the search box (the model's default if None).
+        full_fit: also fit all the data, as one more sample of the same batched call
+            (`CrossValidation.full`; the fit `brdfjax.fit` gives).
         **options: fit options of `brdfjax.batch.fit_batch` (``starts``, ...).
 
     Returns:
@@ -171,7 +175,7 @@ def cross_validate(data: Measurements, model=None, *, seed: int = 0, bounds=None
         raise DataError(f"cross-validation needs at least 3 incidences, the data have "
                         f"{len(groups)}", data.metadata.get("source"),
                         hint="measure more incidences, or skip --cv")
-    samples = [data.select(~mask) for _, _, _, mask in groups]
+    samples = [data.select(~mask) for _, _, _, mask in groups] + ([data] if full_fit else [])
     results = fit_batch(samples, model=model, seed=seed, bounds=bounds, **options)
     target, _ = targets(data)
     weight = np.ones_like(target)  # cv_error is E of Eq. (6) whatever loss the folds fit
@@ -185,4 +189,4 @@ def cross_validate(data: Measurements, model=None, *, seed: int = 0, bounds=None
             held_error=relative_error((values * cos_r)[mask], target[mask], weight[mask]),
             params=result.vector, status=result.status, predicted=values[mask],
             index=np.flatnonzero(mask)))
-    return CrossValidation(model.name, folds)
+    return CrossValidation(model.name, folds, results[-1] if full_fit else None)
