@@ -3,7 +3,9 @@
 `fit` is the one entry point, for every model of `brdfjax.models` (the five-parameter
 model by default). The default ``hybrid`` method runs `brdfjax.evolve.evolve` to find the
 basin, then `brdfjax.polish.polish` from ``starts`` distinct good members (and the model's
-own extra starts: the five-parameter model's Fresnel-free one) at once, and keeps the best. ``ga`` stops after the
+own extra starts: the five-parameter model's Fresnel-free one) at once, and keeps the best.
+Dense scans (more than `DENSE_POINTS` points) are searched and screened on representative
+points, and only the winner is polished on all of them. ``ga`` stops after the
 genetic search; ``lm`` polishes from given parameters, or from random points of the box.
 Incidence angles can be held out for validation, as the paper does (fit 10/30/45/60 deg,
 validate 21/52 deg).
@@ -32,6 +34,12 @@ from brdfjax.objective import (
 from brdfjax.polish import PolishResult, polish, polish_population
 
 METHODS = ("hybrid", "ga", "lm")
+# Dense scans: above DENSE_POINTS training points the hybrid fit searches and screens on
+# SEARCH_POINTS representative points (`representative`) and polishes only the winner on
+# every point. The basin is found long before all points are needed: a 1 deg x 2 deg scan
+# of 100 000 points repeats the same shape hundreds of times.
+DENSE_POINTS = 16384
+SEARCH_POINTS = 4096
 
 
 @dataclass
@@ -168,10 +176,13 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
     prob = problem(train, model)
     timings, history, evaluations = {}, np.zeros(0), 0
     begin = time.perf_counter()
+    search = prob
+    if method == "hybrid" and len(train) > DENSE_POINTS:
+        search = problem(representative(train, SEARCH_POINTS), model)
 
     if method != "lm":
         tic = time.perf_counter()
-        searched = evolve(seed, prob, bounds, config, population_size=population_size,
+        searched = evolve(seed, search, bounds, config, population_size=population_size,
                           max_generations=max_generations)
         searched.errors.block_until_ready()
         timings["evolve"] = time.perf_counter() - tic
@@ -183,8 +194,13 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
     else:
         tic = time.perf_counter()
         if method == "hybrid":
-            polished = polish_population(searched.population, prob, bounds, starts=starts,
+            polished = polish_population(searched.population, search, bounds, starts=starts,
                                          max_steps=max_steps)
+            if search is not prob:  # the winner of the representative points, on every point
+                winner, _, screened = polish_summary(polished)
+                evaluations += screened * search.target.size // prob.target.size
+                polished = polish(to_free(winner[None], bounds), prob, bounds,
+                                  max_steps=max_steps)
         else:
             polished = polish(_lm_starts(start, starts, seed, bounds), prob, bounds,
                               max_steps=max_steps)
@@ -199,6 +215,27 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
                       geometry=None if len(held) else prob.scene, method=method,
                       status=status, evaluations=evaluations, lm_steps=steps,
                       lm_success=success, timings=timings, history=history)
+
+
+def representative(data: Measurements, count: int) -> Measurements:
+    """About ``count`` points of ``data`` that keep its shape, for searching dense scans.
+
+    Every incidence (or incidence bin, `brdfjax.validation.incidence_groups`) keeps its
+    share of the points. Within one, a tenth of its share goes to its brightest points, so
+    that narrow peaks stay represented, and the rest are spread evenly over its points
+    ordered by (theta_r, phi_r), so that every angle is.
+    """
+    from brdfjax.validation import incidence_groups
+
+    keep = np.zeros(len(data), dtype=bool)
+    for *_, mask in incidence_groups(data):
+        index = np.flatnonzero(mask)
+        share = max(1, round(count * index.size / len(data)))
+        brightest = index[np.argsort(-np.abs(data.brdf[index]))[:max(1, share // 10)]]
+        ordered = index[np.lexsort((data.phi_r[index], data.theta_r[index]))]
+        spread = ordered[np.linspace(0, index.size - 1, share - brightest.size).astype(int)]
+        keep[brightest] = keep[spread] = True
+    return data.select(keep)
 
 
 def search_summary(searched: EvolveResult, population_size: int) -> tuple[np.ndarray, int]:
