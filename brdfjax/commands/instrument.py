@@ -26,7 +26,6 @@ def register(subparsers) -> None:
     p.add_argument("--out", required=True, metavar="FILE", help="the measurement file (.csv)")
     p.add_argument("--journal", metavar="FILE",
                    help="the journal (default: FILE with the suffix .journal.jsonl)")
-    add_model_option(p, "the model of --params")
     p.add_argument("--reference-reflectance", type=float, default=0.99, metavar="RHO",
                    help="hemispherical reflectance of the PTFE reference plate at the "
                         "wavelength (default 0.99)")
@@ -63,6 +62,7 @@ def register(subparsers) -> None:
                              "paper sample name; see --model)")
     sample.add_argument("--data", metavar="FILE",
                         help="interpolate this in-plane measurement file instead")
+    add_model_option(p, "the model of --params")
     p.add_argument("--reference-reflectance", type=float, default=0.99, metavar="RHO",
                    help="the simulated PTFE plate's reflectance (default 0.99)")
     p.add_argument("--gain", type=float, default=3.0,
