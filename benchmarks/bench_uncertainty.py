@@ -77,7 +77,7 @@ def calibrate(replicates: int, given_sigma: bool, offset: int) -> dict:
         data = paper_sample("white_paint", seed=offset + k)
         if not given_sigma:
             data = dataclasses.replace(data, sigma=None)
-        result = fit(data, validate_incidences=HELD_OUT, seed=k)
+        result = fit(data, validate_incidences_deg=HELD_OUT, seed=k)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UncertaintyWarning)
             laplace = laplace_approximation(data, result, seed=k)
@@ -157,7 +157,7 @@ def speed_worker(inline: bool) -> dict:
     if inline:
         inline_dispatch()  # before the first JAX computation of this process
     data = load(REPO / "data" / "synthetic" / "white_paint.csv")
-    result = fit(data, validate_incidences=HELD_OUT)
+    result = fit(data, validate_incidences_deg=HELD_OUT)
     laplace = laplace_approximation(data, result)
 
     def timed(run):

@@ -2,7 +2,7 @@
 
     import brdfjax
     data = brdfjax.load("data/synthetic/white_paint.csv")
-    result = brdfjax.fit(data, validate_incidences=[21, 52])
+    result = brdfjax.fit(data, validate_incidences_deg=[21, 52])
     brdfjax.reflectance(result.params, 0.0)
 
 Fitting needs float64, so brdfjax turns on JAX's 64-bit mode (unless ``JAX_ENABLE_X64=0``

@@ -117,20 +117,20 @@ class FitResult:
         }
 
 
-def split(data: Measurements, validate_incidences=None) -> tuple[Measurements, Measurements]:
+def split(data: Measurements, validate_incidences_deg=None) -> tuple[Measurements, Measurements]:
     """Training and held-out subsets by incidence angle (degrees)."""
-    if not validate_incidences:
+    if not validate_incidences_deg:
         return data, data.select(np.zeros(len(data), dtype=bool))
-    mask = data.incidence_mask(validate_incidences)
+    mask = data.incidence_mask(validate_incidences_deg)
     train, held = data.select(~mask), data.select(mask)
-    missing = set(np.round(validate_incidences, 6)) - set(held.incidences_deg)
+    missing = set(np.round(validate_incidences_deg, 6)) - set(held.incidences_deg)
     if missing:
         raise DataError(f"held-out incidence(s) {_degrees(sorted(missing))} deg not in the data",
                         data.metadata.get("source"),
                         hint=f"the data have {_degrees(data.incidences_deg)} deg")
     if len(train.incidences_deg) == 0:
         raise DataError("nothing left to fit after holding out "
-                        f"{_degrees(validate_incidences)} deg", data.metadata.get("source"),
+                        f"{_degrees(validate_incidences_deg)} deg", data.metadata.get("source"),
                         hint="held-out validation needs at least two incidence angles")
     return train, held
 
@@ -140,7 +140,7 @@ def _degrees(values) -> str:
 
 
 def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None = None,
-        seed: int = 0, validate_incidences=None, bounds: Bounds | None = None, start=None,
+        seed: int = 0, validate_incidences_deg=None, bounds: Bounds | None = None, start=None,
         starts: int = 16, population_size: int = 128, max_generations: int = 40,
         max_steps: int = 1000, config: EvolveConfig | None = None,
         constants=None, loss: str = "eq6") -> FitResult:
@@ -151,7 +151,7 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
         method: ``hybrid`` (genetic search then LM), ``ga`` or ``lm``.
         model: a name of `brdfjax.models.available` or a `brdfjax.models.Model`.
         seed: seeds every random choice; the same seed gives the same result.
-        validate_incidences: incidence angles (deg) held out of the fit and scored after.
+        validate_incidences_deg: incidence angles (deg) held out of the fit and scored after.
         bounds: the search box (the model's `brdfjax.bounds.default_bounds` if None).
         start: for ``lm``, starting parameters (P,) or (S, P); random starts if None.
         starts: how many distinct GA members LM polishes (besides the model's extra
@@ -172,7 +172,7 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
     model = get(model, constants)
     bounds = default_bounds(model) if bounds is None else bounds
     check_bounds(bounds, model)
-    train, held = split(with_loss(data, loss), validate_incidences)
+    train, held = split(with_loss(data, loss), validate_incidences_deg)
     prob = problem(train, model)
     timings, history, evaluations = {}, np.zeros(0), 0
     begin = time.perf_counter()

@@ -80,7 +80,7 @@ NOISE_ROUNDS = 2
 def laplace_approximation(data: Measurements, fit, *, draws: int = 2000, seed: int = 0,
                           max_steps: int = 1000, condition_limit: float = CONDITION_LIMIT,
                           bounds: Bounds | None = None, model: str | Model | None = None,
-                          validate_incidences=None) -> UncertaintyResult:
+                          validate_incidences_deg=None) -> UncertaintyResult:
     """Gaussian approximation of the posterior at its mode, from the Jacobian of the model.
 
     Polishes the fit to the posterior mode (`find_mode`), inverts the Fisher information
@@ -98,14 +98,14 @@ def laplace_approximation(data: Measurements, fit, *, draws: int = 2000, seed: i
         max_steps: Levenberg-Marquardt step cap when polishing to the mode (the fit's
             default, so that `brdfjax.fit` with ``lm`` and this share one compiled LM).
         condition_limit: largest acceptable condition number (see `CONDITION_LIMIT`).
-        bounds, model, validate_incidences: as for `brdfjax.fitting.fit` when ``fit`` is
+        bounds, model, validate_incidences_deg: as for `brdfjax.fitting.fit` when ``fit`` is
             bare parameters.
 
     Returns:
         An `~brdfjax.posterior.UncertaintyResult` with method ``laplace``.
     """
     tic = time.perf_counter()
-    post, start = training_setup(data, fit, bounds, model, validate_incidences)
+    post, start = training_setup(data, fit, bounds, model, validate_incidences_deg)
     size = post.size
     center = find_mode(post, start, max_steps)
     information, slope = (np.asarray(v) for v in _curvature(center, post))

@@ -148,14 +148,14 @@ def build_posterior(data: Measurements, bounds: Bounds | None = None,
 
 def training_setup(data: Measurements, fit, bounds: Bounds | None = None,
                    model: str | Model | None = None,
-                   validate_incidences=None) -> tuple[Posterior, np.ndarray]:
+                   validate_incidences_deg=None) -> tuple[Posterior, np.ndarray]:
     """The posterior of the points a fit used, and the fitted parameters to start from.
 
     Args:
         data: all measurements.
         fit: a `brdfjax.fitting.FitResult` (its model, bounds and held-out incidences are
             used, and the arguments below ignored) or parameters (P,) of ``model``.
-        bounds, model, validate_incidences: as for `brdfjax.fitting.fit`, when ``fit`` is
+        bounds, model, validate_incidences_deg: as for `brdfjax.fitting.fit`, when ``fit`` is
             bare parameters.
 
     Returns:
@@ -165,7 +165,7 @@ def training_setup(data: Measurements, fit, bounds: Bounds | None = None,
 
     if isinstance(fit, FitResult):
         bounds, model = fit.bounds, fit.model
-        validate_incidences = fit.validation_incidences
+        validate_incidences_deg = fit.validation_incidences
         start = fit.vector
     else:
         model = get(model)
@@ -173,7 +173,7 @@ def training_setup(data: Measurements, fit, bounds: Bounds | None = None,
         if start.shape != (model.size,):
             raise ValueError(f"expected a FitResult or {model.size} parameters of the "
                              f"{model.name} model, got shape {start.shape}")
-    train, _ = split(data, validate_incidences)
+    train, _ = split(data, validate_incidences_deg)
     return build_posterior(train, bounds, model), start
 
 
@@ -523,7 +523,7 @@ def sample_posterior(data: Measurements, fit, *, walkers: int = 32, max_steps: i
                      chain_path=None, progress: bool = True,
                      start: UncertaintyResult | None = None, bounds: Bounds | None = None,
                      model: str | Model | None = None,
-                     validate_incidences=None) -> UncertaintyResult:
+                     validate_incidences_deg=None) -> UncertaintyResult:
     """Sample the posterior with emcee until the chain is longer than 50 autocorrelation times.
 
     Walkers start from the Laplace approximation at the fit's optimum (`start`, computed if
@@ -546,7 +546,7 @@ def sample_posterior(data: Measurements, fit, *, walkers: int = 32, max_steps: i
             already holds a chain of the same shape, sampling resumes from its last step.
         progress: show a tqdm progress bar.
         start: a Laplace `UncertaintyResult` of the same data to start the walkers from.
-        bounds, model, validate_incidences: see `training_setup`.
+        bounds, model, validate_incidences_deg: see `training_setup`.
 
     Returns:
         An `UncertaintyResult` with method ``mcmc``.
@@ -554,7 +554,7 @@ def sample_posterior(data: Measurements, fit, *, walkers: int = 32, max_steps: i
     import emcee
     from tqdm import tqdm
 
-    post, _ = training_setup(data, fit, bounds, model, validate_incidences)
+    post, _ = training_setup(data, fit, bounds, model, validate_incidences_deg)
     if walkers < 2 * post.ndim:
         raise ValueError(f"emcee needs at least {2 * post.ndim} walkers for {post.ndim} "
                          f"sampled coordinates, got {walkers}")
@@ -584,7 +584,7 @@ def sample_posterior(data: Measurements, fit, *, walkers: int = 32, max_steps: i
             from brdfjax.laplace import laplace_approximation
 
             start = laplace_approximation(data, fit, bounds=post.bounds, model=post.model,
-                                          validate_incidences=validate_incidences, draws=0)
+                                          validate_incidences_deg=validate_incidences_deg, draws=0)
         rng = np.random.default_rng(seed)
         state = _starting_walkers(start, post, walkers, rng)
         sampler.random_state = np.random.RandomState(rng.integers(2**32)).get_state()

@@ -33,7 +33,7 @@ def test_noise_free_data_recover_the_parameters(name):
 
 
 def test_errors_match_an_independent_transcription_of_eq6(white_paint):
-    result = fit(white_paint, validate_incidences=[21, 52])
+    result = fit(white_paint, validate_incidences_deg=[21, 52])
     d = white_paint
     with np.errstate(invalid="ignore", divide="ignore"):
         model = transcribed(*result.vector, d.theta_i, d.theta_r, d.phi_r)

@@ -57,7 +57,7 @@ def std_in_prior_coordinates(result):
 @pytest.fixture(scope="module")
 def white_fit(white_paint):
     """LM from the truth on the training incidences (the fit itself is tested elsewhere)."""
-    return fit(white_paint, "lm", start=TRUTH, validate_incidences=HELD_OUT)
+    return fit(white_paint, "lm", start=TRUTH, validate_incidences_deg=HELD_OUT)
 
 
 @pytest.fixture(scope="module")
@@ -216,7 +216,7 @@ def test_laplace_coverage_and_band_width_over_40_replicates():
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UncertaintyWarning)
             result = laplace_approximation(
-                data, fit(data, "lm", start=TRUTH, validate_incidences=HELD_OUT))
+                data, fit(data, "lm", start=TRUTH, validate_incidences_deg=HELD_OUT))
         inside.append((result.ci95[:, 0] <= TRUTH) & (TRUTH <= result.ci95[:, 1]))
         modes.append(prior_coordinates(result.median))
         stds.append(std_in_prior_coordinates(result))
@@ -250,7 +250,7 @@ def test_laplace_flags_a_parameter_at_its_bound(white_paint):
     bounds = make_bounds({"kd": (1e-8, 0.2)})
     with pytest.warns(UncertaintyWarning) as caught:
         approximation = laplace_approximation(white_paint, TRUTH * [1, 1, 1, 1, 0.2 / 0.22],
-                                              bounds=bounds, validate_incidences=HELD_OUT)
+                                              bounds=bounds, validate_incidences_deg=HELD_OUT)
     assert approximation.status == "untrustworthy"
     assert approximation.warnings == [str(w.message) for w in caught]
     assert approximation.warnings[0].startswith("kd at a bound")
@@ -269,7 +269,7 @@ def test_laplace_flags_unidentified_parameters():
                                                     .standard_normal(clean.size)),
         sigma=0.025 * clean / np.cos(data.theta_r))
     with pytest.warns(UncertaintyWarning):
-        approximation = laplace_approximation(data, params, validate_incidences=HELD_OUT)
+        approximation = laplace_approximation(data, params, validate_incidences_deg=HELD_OUT)
     assert approximation.status == "untrustworthy"
     # LM drifts along the flat directions (which flags fire depends on where it stops):
     # the four specular parameters end at a bound or with intervals over much of the box,

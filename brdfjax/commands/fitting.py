@@ -152,7 +152,7 @@ def run_fit(args) -> None:
     if args.model == "auto":
         args.model = choose_model(data, args.seed)
     result = fit(data, args.method, model=args.model, seed=args.seed, loss=args.loss,
-                 validate_incidences=held_out(data, args),
+                 validate_incidences_deg=held_out(data, args),
                  bounds=make_bounds(parse_bounds(args.bound), model=args.model))
     print(summary(result, data.name))
     if result.status == "failed":
@@ -474,7 +474,7 @@ def run_demo(args) -> None:
     data = load(path)
     print(f"\nFit of {path.name} (SYNTHETIC stand-in: the paper's data are not published), "
           "on 10/30/45/60 deg, validated on 21/52 deg as in the paper")
-    result, compiled = compilations(lambda: fit(data, validate_incidences=[21, 52]))
+    result, compiled = compilations(lambda: fit(data, validate_incidences_deg=[21, 52]))
     paper = PAPER_SAMPLES["white_paint"]
     print(f"  {'':>3} {'fitted':>12} {'paper':>12}")
     for key in paper._fields:
