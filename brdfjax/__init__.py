@@ -1,9 +1,11 @@
-"""brdfjax: fit the five-parameter BRDF model of Zhang, Wu, Cao and Zhang to measured data.
+"""brdfjax: fit BRDF models to measured data, the five-parameter model of Zhang, Wu, Cao and
+Zhang by default, cross-validate them and predict new geometry.
 
     import brdfjax
     data = brdfjax.load("data/synthetic/white_paint.csv")
     result = brdfjax.fit(data, validate_incidences_deg=[21, 52])
     brdfjax.reflectance(result.params, 0.0)
+    brdfjax.compare_models(data).table()          # every model, ranked by cv_error
 
 Fitting needs float64, so brdfjax turns on JAX's 64-bit mode (unless ``JAX_ENABLE_X64=0``
 is set); float32 inputs are still evaluated in float32. Names are imported on first use,
@@ -39,6 +41,13 @@ _EXPORTS = {
     "fit": "brdfjax.fitting",
     "FitResult": "brdfjax.fitting",
     "fit_batch": "brdfjax.batch",
+    "cross_validate": "brdfjax.validation",
+    "CrossValidation": "brdfjax.validation",
+    "predict": "brdfjax.prediction",
+    "Prediction": "brdfjax.prediction",
+    "compare_models": "brdfjax.selection",
+    "Comparison": "brdfjax.selection",
+    "Model": "brdfjax.models",
     "Bounds": "brdfjax.bounds",
     "make_bounds": "brdfjax.bounds",
     "default_bounds": "brdfjax.bounds",
@@ -55,14 +64,20 @@ __all__ = [
     "PAPER_SAMPLES",
     "PARAMETER_NAMES",
     "Bounds",
+    "Comparison",
+    "CrossValidation",
     "DataError",
     "FitResult",
     "Measurements",
+    "Model",
     "Params",
+    "Prediction",
     "ShadowingConstants",
     "UncertaintyResult",
     "UncertaintyWarning",
     "brdf",
+    "compare_models",
+    "cross_validate",
     "curve_bands",
     "default_bounds",
     "evaluate",
@@ -72,6 +87,7 @@ __all__ = [
     "laplace_approximation",
     "load",
     "make_bounds",
+    "predict",
     "projected_brdf",
     "reflectance",
     "reflectance_bands",
