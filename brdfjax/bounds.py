@@ -29,7 +29,6 @@ import numpy as np
 
 from brdfjax.models import get
 from brdfjax.models.base import array_module
-from brdfjax.models.five import FiveParameter
 
 LINEAR, LOG10, ASINH = 0, 1, 2
 SCALES = {"linear": LINEAR, "log10": LOG10, "asinh": ASINH}
@@ -45,11 +44,6 @@ class Bounds(NamedTuple):
     lower: jax.Array
     upper: jax.Array
     scale: jax.Array
-
-
-# The five-parameter model's defaults (every model declares its own).
-DEFAULT_RANGES = {p.name: (p.low, p.high) for p in FiveParameter.parameters}
-DEFAULT_SCALES = {p.name: p.scale for p in FiveParameter.parameters}
 
 
 def default_bounds(model=None) -> Bounds:

@@ -24,7 +24,6 @@ fold. Data are taken as scattered when they have more distinct incidences than
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -132,20 +131,17 @@ def incidence_groups(data: Measurements) -> list[tuple[str, float, float, np.nda
 
     One group per distinct incidence, or, for scattered geometry (more than `MAX_FOLDS`
     distinct incidences), `SCATTERED_BINS` bins of about equal point count with edges
-    rounded to whole degrees.
+    rounded to whole degrees (`brdfjax.measurements.Measurements.incidence_bins`); ``low``
+    and ``high`` are the smallest and largest incidence in the group (degrees).
     """
     degrees = np.round(np.degrees(data.theta_i), 6)
-    distinct = np.unique(degrees)
-    if distinct.size <= MAX_FOLDS:
-        return [(f"{d:g}", float(d), float(d), degrees == d) for d in distinct]
-    edges = np.unique(np.round(np.quantile(degrees, np.linspace(0, 1, SCATTERED_BINS + 1))))
-    edges[0], edges[-1] = min(edges[0], distinct[0]), max(edges[-1], distinct[-1])
+    distinct = np.unique(degrees).size
+    bins = data.incidence_bins(max_bins=distinct if distinct <= MAX_FOLDS else SCATTERED_BINS)
     groups = []
-    for k, (low, high) in enumerate(itertools.pairwise(edges)):
-        last = k == len(edges) - 2
-        mask = (degrees >= low) & ((degrees <= high) if last else (degrees < high))
-        if mask.any():
-            groups.append((f"{low:g}-{high:g}", float(low), float(high), mask))
+    for k, label in enumerate(bins.labels):
+        mask = bins.index == k
+        groups.append((label.removesuffix(" deg"), float(degrees[mask].min()),
+                       float(degrees[mask].max()), mask))
     return groups
 
 
