@@ -16,7 +16,8 @@ import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-SCRIPTS = ("bench_fit.py", "bench_uncertainty.py", "bench_batch.py", "bench_models.py")
+SCRIPTS = ("bench_fit.py", "bench_uncertainty.py", "bench_batch.py", "bench_models.py",
+           "bench_dense.py", "bench_predictive.py")
 
 
 def main() -> int:
