@@ -101,6 +101,10 @@ def _unit_error(z, prob, bounds):
     return error(from_unit(z, bounds), prob)
 
 
+def _unit_errors(zs, prob, bounds):
+    return jax.vmap(lambda z: _unit_error(z, prob, bounds))(zs)
+
+
 def _unit_residuals(z, prob, bounds):
     return residuals(from_unit(z, bounds), prob)
 
@@ -120,7 +124,7 @@ def _solved(z_nonlinear, prob, bounds, nonlinear):
     return to_unit(_fill(z_nonlinear, prob, bounds, nonlinear)[0], bounds)
 
 
-_KERNELS = {"error": _unit_error, "errors": jax.vmap(_unit_error, in_axes=(0, None, None)),
+_KERNELS = {"error": _unit_error, "errors": _unit_errors,
             "residuals": _unit_residuals, "jacobian": jax.jacfwd(_unit_residuals),
             "projected_error": _projected_error, "solved": _solved}
 # Shared compiled code: the problem and bounds are arguments (traced), so every data set of
