@@ -37,7 +37,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from brdfjax.models.base import safe_divide, safe_sqrt
+from brdfjax.models.base import broadcast_angles, safe_divide, safe_sqrt
 
 
 class ShadowingConstants(NamedTuple):
@@ -101,9 +101,7 @@ def scene(theta_i, theta_r, phi_r, constants: ShadowingConstants = PAPER_CONSTAN
             in_plane = is_in_plane(phi_r)
         except jax.errors.TracerArrayConversionError:  # traced: take the general path
             in_plane = False
-    theta_i, theta_r, phi_r = jnp.broadcast_arrays(
-        *(jnp.asarray(x, dtype=jnp.result_type(float, theta_i, theta_r, phi_r))
-          for x in (theta_i, theta_r, phi_r)))
+    theta_i, theta_r, phi_r = broadcast_angles(theta_i, theta_r, phi_r)
     terms = _in_plane_terms if in_plane else _general_terms
     return terms(theta_i, theta_r, phi_r, constants)
 

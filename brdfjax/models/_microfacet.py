@@ -13,7 +13,7 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-from brdfjax.models.base import Model, safe_divide, safe_sqrt
+from brdfjax.models.base import Model, broadcast_angles, safe_divide, safe_sqrt
 
 
 class HalfVector(NamedTuple):
@@ -37,9 +37,7 @@ class HalfVector(NamedTuple):
 
 def half_vector(theta_i, theta_r, phi_r) -> HalfVector:
     """The half-vector terms for broadcastable angles in radians."""
-    theta_i, theta_r, phi_r = jnp.broadcast_arrays(
-        *(jnp.asarray(x, dtype=jnp.result_type(float, theta_i, theta_r, phi_r))
-          for x in (theta_i, theta_r, phi_r)))
+    theta_i, theta_r, phi_r = broadcast_angles(theta_i, theta_r, phi_r)
     cos_ti, sin_ti = jnp.cos(theta_i), jnp.sin(theta_i)
     cos_tr, sin_tr = jnp.cos(theta_r), jnp.sin(theta_r)
     s_x = sin_ti + sin_tr * jnp.cos(phi_r)

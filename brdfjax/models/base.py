@@ -22,6 +22,7 @@ it runs. Adding a model is one new module in `brdfjax.models` with a `Model` sub
 from __future__ import annotations
 
 import collections
+import dataclasses
 from dataclasses import dataclass
 from typing import ClassVar, NamedTuple
 
@@ -145,8 +146,18 @@ class Model:
         return z[:0]
 
     def with_constants(self, constants) -> Model:
-        """This model with other shadowing constants (only models with a G term take any)."""
-        raise ValueError(f"the {self.name} model has no shadowing constants to set")
+        """This model with other shadowing constants (a model with a G term keeps them in a
+        ``constants`` field; the others take none)."""
+        if not hasattr(self, "constants"):
+            raise ValueError(f"the {self.name} model has no shadowing constants to set")
+        return dataclasses.replace(self, constants=type(self.constants)(*constants))
+
+
+def broadcast_angles(theta_i, theta_r, phi_r):
+    """The three angle arrays broadcast to one shape, in one floating dtype (float64 unless
+    all are float32)."""
+    dtype = jnp.result_type(float, theta_i, theta_r, phi_r)
+    return jnp.broadcast_arrays(*(jnp.asarray(x, dtype=dtype) for x in (theta_i, theta_r, phi_r)))
 
 
 def safe_divide(numerator, denominator, where, fallback):

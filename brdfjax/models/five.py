@@ -145,5 +145,3 @@ class FiveParameter(Model):
         moved = z.at[..., 2].set(wanted[2]).at[..., 3].set(wanted[3])
         return jnp.where((bounds.lower[3] <= 0) & (bounds.upper[3] >= 0), moved, z)
 
-    def with_constants(self, constants):
-        return FiveParameter(ShadowingConstants(*constants))

@@ -8,7 +8,7 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-from brdfjax.models.base import Model, Parameter
+from brdfjax.models.base import Model, Parameter, broadcast_angles
 
 
 class LambertGeometry(NamedTuple):
@@ -29,9 +29,7 @@ class Lambert(Model):
     linear = ("kd",)
 
     def geometry(self, theta_i, theta_r, phi_r, in_plane):
-        theta_i, theta_r, phi_r = jnp.broadcast_arrays(
-            *(jnp.asarray(x, dtype=jnp.result_type(float, theta_i, theta_r, phi_r))
-              for x in (theta_i, theta_r, phi_r)))
+        theta_i, theta_r, phi_r = broadcast_angles(theta_i, theta_r, phi_r)
         return LambertGeometry(jnp.cos(theta_r))
 
     def evaluate(self, params, geometry):

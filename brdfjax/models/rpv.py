@@ -23,7 +23,7 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-from brdfjax.models.base import Model, Parameter, safe_divide, safe_sqrt
+from brdfjax.models.base import Model, Parameter, broadcast_angles, safe_divide, safe_sqrt
 
 GRAZING_COSINE = 1e-9
 
@@ -69,9 +69,7 @@ class Rpv(Model):
     peak = "backscatter"
 
     def geometry(self, theta_i, theta_r, phi_r, in_plane):
-        theta_i, theta_r, phi_r = jnp.broadcast_arrays(
-            *(jnp.asarray(x, dtype=jnp.result_type(float, theta_i, theta_r, phi_r))
-              for x in (theta_i, theta_r, phi_r)))
+        theta_i, theta_r, phi_r = broadcast_angles(theta_i, theta_r, phi_r)
         cos_i, sin_i = jnp.cos(theta_i), jnp.sin(theta_i)
         cos_r, sin_r = jnp.cos(theta_r), jnp.sin(theta_r)
         cos_pr = jnp.cos(phi_r)

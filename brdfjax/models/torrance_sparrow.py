@@ -96,5 +96,3 @@ class TorranceSparrow(Model):
     def assemble(self, coefficients, params, bounds):
         return params.at[0].set(coefficients[0]).at[3].set(coefficients[1])
 
-    def with_constants(self, constants):
-        return TorranceSparrow(ShadowingConstants(*constants))
