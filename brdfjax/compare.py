@@ -17,7 +17,8 @@ Eq. (6) over the same box (the model's `brdfjax.bounds.default_bounds`), in one 
   ``least_squares`` (`pygad_fit`), if pygad is installed.
 
 Stopping rules (`TOLERANCES`): brdfjax's genetic search stops after ``max_generations``
-(40) or when no island's best E has improved by a relative 1e-6 for 15 generations; its LM
+(40) or when no island's best E has improved by a relative 1e-6 for 15 generations (a model
+with one searched parameter, GGX or Beckmann, is scored once on a 128-point grid); its LM
 polish (optimistix Levenberg-Marquardt, float64) stops at rtol = atol = 1e-10 or after
 1000 steps (`brdfjax.polish`). SciPy's ``differential_evolution`` runs with its defaults
 (popsize 15 per dimension, maxiter 1000, tol 0.01, atol 0: it stops when the population's
@@ -51,7 +52,8 @@ from brdfjax.objective import error, problem, residuals, solve_linear
 
 # Every method's stopping rule, as stated in the benchmark tables.
 TOLERANCES = {
-    "brdfjax hybrid": "GA: 40 generations, or 15 with no 1e-6 relative gain; LM: rtol = atol = 1e-10, "
+    "brdfjax hybrid": "GA: 40 generations, or 15 with no 1e-6 relative gain (one searched "
+                      "parameter: a 128-point grid instead); LM: rtol = atol = 1e-10, "
                       "at most 1000 steps",
     "scipy vp": "DE defaults (popsize 15/dim, maxiter 1000, tol 0.01); least_squares trf, "
                 "xtol = ftol = gtol = 1e-12, exact Jacobian",

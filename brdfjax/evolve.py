@@ -20,6 +20,10 @@ The islands evolve side by side in one loop (``lax.while_loop``), their members 
 together; it stops after ``max_generations`` or when no island's best error has improved
 by a relative ``tolerance`` for ``patience`` generations. Sizes are static; rates, bounds
 and data are traced, so sweeping them never recompiles.
+
+A model that leaves at most one parameter to search (GGX and Beckmann search alpha only,
+Lambert nothing) needs no genetic algorithm: `scan` scores ``population_size`` evenly
+spaced values of that parameter once, and its best local minima become the polish starts.
 """
 
 from __future__ import annotations
@@ -122,6 +126,8 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
     prob, bounds = jax.tree.map(
         lambda x: x.astype(dtype) if jnp.issubdtype(x.dtype, jnp.floating) else x,
         (prob, bounds))
+    if prob.model.searched_size <= 1:
+        return scan(prob, bounds, population_size, islands, max_generations, out)
     config = jax.tree.map(lambda x: jnp.asarray(x, dtype), config)
     size = population_size // islands
     dimensions = prob.model.size
@@ -178,3 +184,32 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
     return EvolveResult(population=z.reshape(-1, dimensions).astype(out),
                         errors=errors.reshape(-1).astype(out), history=history.astype(out),
                         generations=generations)
+
+
+def scan(prob: Problem, bounds: Bounds, points: int, islands: int, max_generations: int,
+         out) -> EvolveResult:
+    """The search of a model with at most one parameter to search: a grid, scored once.
+
+    Every gene of member k is ``(k + 1/2) / points``: the linear solve overwrites all genes
+    but the searched one, which thus takes ``points`` evenly spaced values across its range
+    (a 3-decade log10 range in steps of 5.5 % for 128 points). The grid's local minima,
+    best first, give one island each (the best ``islands``; where there are fewer, the
+    remaining islands repeat the best member), so that `brdfjax.polish.polish_population`
+    starts once from each minimum: it skips repeated starts.
+
+    Returns:
+        An `EvolveResult` laid out as `evolve`'s (island blocks, each one member repeated)
+        with ``generations`` 0 and an all-NaN history: no generation was bred.
+    """
+    grid = (jnp.arange(points, dtype=prob.target.dtype) + 0.5) / points
+    z, errors = score_population(jnp.broadcast_to(grid[:, None], (points, prob.model.size)),
+                                 prob, bounds)
+    padded = jnp.pad(errors, 1, constant_values=jnp.inf)
+    minimum = (errors <= padded[:-2]) & (errors <= padded[2:]) & jnp.isfinite(errors)
+    order = jnp.argsort(jnp.where(minimum, errors, jnp.inf))[:islands]
+    order = jnp.where(minimum[order], order, order[0])  # too few minima: repeat the best
+    block = points // islands
+    return EvolveResult(population=jnp.repeat(z[order], block, axis=0).astype(out),
+                        errors=jnp.repeat(errors[order], block).astype(out),
+                        history=jnp.full(max_generations, jnp.nan, out),
+                        generations=jnp.asarray(0))

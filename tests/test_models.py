@@ -222,3 +222,44 @@ def test_fit_recovers_noise_free_parameters(name):
     assert result.model.name == name and result.params._fields == get(name).names
     assert result.error < 1e-16
     np.testing.assert_allclose(result.vector, truth, rtol=1e-6)
+
+
+# ---- the search of a model with one parameter to search
+
+@pytest.mark.parametrize("name", NAMES)
+def test_searched_size_is_what_the_linear_solve_leaves(name):
+    """`Model.searched_size` (declared: parameters minus linear coefficients) equals the
+    count derived by assembling two coefficient vectors (`compare.nonlinear_parameters`)."""
+    from brdfjax.compare import nonlinear_parameters
+
+    model = get(name)
+    assert model.searched_size == len(nonlinear_parameters(model, default_bounds(model)))
+
+
+def test_a_one_parameter_search_offers_each_local_minimum_of_its_grid():
+    """GGX searches alpha only, on a grid scored once (`brdfjax.evolve.scan`). Data made of
+    two GGX lobes (alpha 0.03 and 0.6) have two minima of E along alpha: the scan offers
+    both, each lower than E one grid step either side (recomputed in float64), and the fit
+    polished from them reaches E below SciPy's careful peer's."""
+    from brdfjax.compare import scipy_vp
+    from brdfjax.evolve import evolve, score_population
+    from brdfjax.synthetic import paper_geometry
+
+    angles = paper_geometry("cement")
+    values = sum(np.asarray(brdf(np.array(p), *np.radians(angles), model="ggx"))
+                 for p in ([1.0, 0.03, 0.05, 0.01], [3.0, 0.6, 0.05, 0.0]))
+    data = Measurements.from_degrees(*angles, values)
+    model = get("ggx")
+    bounds, prob = default_bounds(model), problem(data, model)
+    searched = evolve(0, prob, bounds, population_size=128)
+    assert int(searched.generations) == 0
+    offered = np.unique(np.asarray(searched.population), axis=0)
+    assert len(offered) == 2
+    step = 1 / 128
+    for member in offered:
+        z = member[model.index("alpha")]
+        around = np.full((3, model.size), z) + np.array([[-step], [0.0], [step]])
+        _, errors = score_population(jnp.asarray(around), prob, bounds)
+        assert errors[1] < min(errors[0], errors[2])
+    result = brdfjax.fit(data, model="ggx")
+    assert result.error <= scipy_vp(data, "ggx", 0)[1] * (1 + 1e-9)

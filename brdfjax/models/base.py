@@ -104,6 +104,12 @@ class Model:
         """The number of parameters."""
         return len(self.parameters)
 
+    @property
+    def searched_size(self) -> int:
+        """How many parameters the search explores; the linear solve sets the others (one
+        per linear coefficient)."""
+        return self.size - len(self.linear)
+
     def index(self, name: str) -> int:
         """The position of parameter ``name`` in a parameter vector."""
         return self.names.index(name)
