@@ -15,9 +15,12 @@ recommendation uses.
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass
 
 import numpy as np
+from tqdm import tqdm
 
 from brdfjax.measurements import Measurements
 
@@ -116,13 +119,19 @@ def information_criteria(result, data: Measurements) -> tuple[float, float]:
     return 2 * size - 2 * log_likelihood, size * np.log(count) - 2 * log_likelihood
 
 
-def compare_models(data: Measurements, models=None, *, seed: int = 0) -> Comparison:
+def compare_models(data: Measurements, models=None, *, seed: int = 0,
+                   progress: bool = False) -> Comparison:
     """Fit and cross-validate every model (or those named) on ``data``.
+
+    The models run in threads, one per core: loading a model's compiled code (about 0.1 s
+    per stage from the caches) and fitting one overlap (warm ``brdfjax models`` on 120
+    points: 3.5-3.9 s against 5.2-5.4 s one after another, 2 cores).
 
     Args:
         data: the measurements (at least three incidences, for the interior folds).
         models: model names (all of `brdfjax.models.available` if None).
         seed: the seed of every fit.
+        progress: show a progress bar (tqdm) of the models done.
 
     Returns:
         A `Comparison`.
@@ -131,14 +140,20 @@ def compare_models(data: Measurements, models=None, *, seed: int = 0) -> Compari
     from brdfjax.models import available
     from brdfjax.validation import cross_validate
 
-    scores = []
-    for name in models or available():
+    def score(name: str) -> ModelScore:
         validation = cross_validate(data, name, seed=seed, full_fit=True)  # one batched call
         result = validation.full
         aic, bic = information_criteria(result, data)
         rho = np.asarray(reflectance(result.params, np.radians(REFLECTANCE_INCIDENCES),
                                      model=result.model))
-        scores.append(ModelScore(name, result, validation, aic, bic,
-                                 {f"{d:g}": float(r) for d, r in
-                                  zip(REFLECTANCE_INCIDENCES, rho)}))
+        return ModelScore(name, result, validation, aic, bic,
+                          {f"{d:g}": float(r) for d, r in zip(REFLECTANCE_INCIDENCES, rho)})
+
+    names = list(models or available())
+    with (ThreadPoolExecutor(max_workers=os.cpu_count()) as pool,
+          tqdm(total=len(names), desc="models", unit="model", disable=not progress) as bar):
+        running = [pool.submit(score, name) for name in names]
+        for _ in as_completed(running):
+            bar.update()
+        scores = [job.result() for job in running]
     return Comparison(scores)

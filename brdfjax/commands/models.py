@@ -34,7 +34,7 @@ def run_models(args) -> None:
     enable()
     data = load(args.file, **reader_options(args))
     names = [n.strip() for n in args.models.split(",")] if args.models else None
-    comparison = compare_models(data, names, seed=args.seed)
+    comparison = compare_models(data, names, seed=args.seed, progress=True)
     print(f"{data.name}: {len(data)} points, models ranked by cv_error")
     print(comparison.table())
     if args.json:
