@@ -120,25 +120,41 @@ def long_search(data, truth):
     return min(*big, fit(data, "lm", start=np.array(truth)).error)
 
 
+def scipy_reference(data, seeds=6):
+    """The lowest E of the careful SciPy peer from ``seeds`` DE seeds, with a larger
+    population and a tighter tolerance: a reference that is not brdfjax's own search."""
+    objectives = unit_objectives(data, shared=True)
+    return min(scipy_vp(data, seed=seed, objectives=objectives, popsize=30, tol=1e-4)[1]
+               for seed in range(seeds))
+
+
 def bench_noisy(seeds):
     rows = []
     for name in PAPER_SAMPLES:
-        ok, worst = 0, 0.0
+        ok, worst, scipy_lower = 0, 0.0, 0
         for seed in range(seeds):
             data = paper_sample(name, noise=0.025, seed=1000 + seed).at_incidences(
                 [10, 30, 45, 60])
-            reference = long_search(data, PAPER_SAMPLES[name])
+            independent = scipy_reference(data)
+            reference = min(long_search(data, PAPER_SAMPLES[name]), independent)
             e = fit(data, seed=seed).error
             gap = (e - reference) / reference
             ok += gap <= 1e-6
             worst = max(worst, gap)
-        rows.append(f"| {name} | {ok}/{seeds} | {worst:.1e} |")
+            scipy_lower += independent < e * (1 - 1e-6)
+        rows.append(f"| {name} | {ok}/{seeds} | {worst:.1e} | {scipy_lower} |")
     write_section("noisy", "## Synthetic data with 2.5 % relative noise\n\n"
-                  "Target: E within 1e-6 relative of the best E of a long multi-start search "
-                  "(3 hybrid fits with 2048 members x 200 generations and 64 LM starts, and LM "
-                  "started from the true parameters), for 20 of 20 noise seeds.\n\n"
-                  "| sample | within 1e-6 | worst (E - E_best) / E_best |\n|---|---|---|\n"
-                  + "\n".join(rows))
+                  "Target: E within 1e-6 relative of the reference, the lower of two "
+                  "searches: a long brdfjax multi-start search (3 hybrid fits with 2048 "
+                  "members x 200 generations and 64 LM starts, and LM started from the true "
+                  "parameters) and an independent one, the careful SciPy peer (`scipy_vp`) "
+                  "from 6 DE seeds with popsize 30 per dimension and tol 1e-4; for 20 of 20 "
+                  "noise seeds (1000-1019; the Fresnel-free start was chosen on the cement "
+                  "ones, see the models-synthetic section for seeds never used in "
+                  "choosing settings). \"SciPy lower\": seeds where the SciPy search found a "
+                  "lower E than brdfjax's default fit.\n\n"
+                  "| sample | within 1e-6 | worst (E - E_best) / E_best | SciPy lower |\n"
+                  "|---|---|---|---|\n" + "\n".join(rows))
 
 
 def bench_real():

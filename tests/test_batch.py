@@ -296,3 +296,25 @@ def test_every_wavelength_is_a_sample_with_its_own_row(tmp_path, capsys):
     capsys.readouterr()
     assert main(command) == 0
     assert "2 of 2 inputs already done; nothing left to fit" in capsys.readouterr().err
+
+
+def test_model_auto_picks_the_model_that_made_the_data_for_every_sample(tmp_path, capsys):
+    """Two noise-free GGX samples (other parameters each) at four incidences: GGX predicts
+    held-out incidences exactly and every other model does not, so ``--model auto``
+    chooses GGX, says so, and fits every row with it."""
+    from brdfjax.cli import main
+    from brdfjax.model import brdf
+
+    theta_i, theta_r, phi_r = paper_geometry("khaki_paint")
+    keep = np.isin(theta_i, (10, 30, 45, 60)) & (theta_r % 4 == 0)
+    angles = (theta_i[keep], theta_r[keep], phi_r[keep])
+    for k, params in enumerate(([2.4, 0.35, 0.04, 0.01], [0.8, 0.12, 0.3, 0.05])):
+        values = np.asarray(brdf(np.array(params), *np.radians(angles), model="ggx"))
+        save(Measurements.from_degrees(*angles, values), tmp_path / f"ggx_{k}.csv")
+    out = tmp_path / "results.csv"
+    assert main(["batch", str(tmp_path), "--model", "auto", "--out", str(out)]) == 0
+    said = capsys.readouterr().err
+    assert "--model auto: ggx, the lowest median cv_error" in said and "over 2 of 2" in said
+    table = rows(out.read_text())
+    assert [r["model"] for r in table] == ["ggx", "ggx"]
+    assert all(float(r["error"]) < 1e-12 and "alpha" in r for r in table)

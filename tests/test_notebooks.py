@@ -40,7 +40,9 @@ PROBES = {
         "runs": {m: len(r) for m, r in members.items()},
         "status": [r.status for r in results]}""",
     "instrument": """{"inside": [bool(x) for x in inside], "status": uncertainty.status}""",
-    "models": """{"train": train_e, "held": held_e, "best": best, "wins": int(wins)}""",
+    "models": """{"train": train_e, "held": held_e, "best": best, "wins": int(wins),
+        "ptfe_bins": len(bins), "ptfe_points": len(ptfe),
+        "ptfe": {m: [cv.cv_error, cv.extrapolation_error] for m, cv in ptfe_cv.items()}}""",
 }
 
 
@@ -118,6 +120,13 @@ def check_models(found):
     # "On the NiTE coating ... Torrance-Sparrow predicts better, and GGX beats both"
     nite = "NiTE on invar A"
     assert held["ggx"][nite] < held["torrance-sparrow"][nite] < held["five"][nite]
+    # PTFE random: "1760 points ... in 8 bins"; "Both models predict the bins they did not
+    # see to a fraction of a percent. RPV's cv_error is about four times lower than
+    # Lambert's"; "the extrapolation folds ... two to four times worse than the interior"
+    assert found["ptfe_points"] == 1760 and found["ptfe_bins"] == 8
+    (lambert, lambert_out), (rpv, rpv_out) = found["ptfe"]["lambert"], found["ptfe"]["rpv"]
+    assert max(lambert, rpv) < 0.01 and 3 <= lambert / rpv <= 5.5
+    assert 2 <= lambert_out / lambert <= 4 and 2 <= rpv_out / rpv <= 4
 
 
 CHECKS = {"paper": check_paper, "uncertainty": check_uncertainty,

@@ -21,6 +21,7 @@ from pathlib import Path
 from brdfjax.commands import add_reader_options, check_writable, reader_options
 
 SUFFIXES = (".csv", ".xls", ".bsdf")
+AUTO_SAMPLES = 8  # --model auto chooses on at most this many samples
 SEARCH_OPTIONS = {"population_size": "genetic-search population",
                   "max_generations": "genetic-search generations",
                   "starts": "GA members Levenberg-Marquardt starts from, per sample "
@@ -51,7 +52,8 @@ def register(subparsers) -> None:
     p.add_argument("--seed", type=int, default=0, help="the seed of every fit (default 0)")
     p.add_argument("--model", default="five", metavar="NAME",
                    help="the model to fit: five (default), torrance-sparrow, ggx, beckmann, "
-                        "lambert, rpv")
+                        "lambert, rpv; auto: the lowest median cv_error over the first "
+                        f"{AUTO_SAMPLES} samples (brdfjax models on each), for every sample")
     p.add_argument("--bound", action="append", default=[], metavar="NAME=LO:HI",
                    help="override a parameter's search range, e.g. b=-80:10")
     for name, text in SEARCH_OPTIONS.items():
@@ -194,9 +196,9 @@ def run_batch(args) -> int:
     check_writable({"--out": args.out}, {"--json": args.json})
     if args.chunk_size < 1:
         raise ValueError(f"--chunk-size {args.chunk_size}: give at least 1")
-    model = get(args.model)
+    if args.model != "auto":
+        get(args.model)  # an unknown name fails before any file is read
     spectral = spectral_request(args.wavelength)
-    columns = columns_of(model.names, bool(args.uncertainty), spectral is not None)
     files = expand(args.inputs, outputs=(args.out, args.json))
     if spectral is not None:
         check_writable({"--plot": args.plot})
@@ -204,6 +206,8 @@ def run_batch(args) -> int:
     elif args.plot:
         raise ValueError("--plot draws parameters against wavelength: give --wavelength all "
                          "or a list of wavelengths")
+    model = get(choose_model(files, args) if args.model == "auto" else args.model)
+    columns = columns_of(model.names, bool(args.uncertainty), spectral is not None)
     names = [json_name(f) for f in files]
     if args.json and len(set(names)) < len(names):
         clash = next(n for n in names if names.count(n) > 1)
@@ -326,19 +330,12 @@ def _chunks(pending, args, unread: dict, names):
 
     A file that cannot be read goes into ``unread`` as a failed result with the reason.
     """
-    from brdfjax.formats import load
     from brdfjax.measurements import DataError
 
     chunk = []
     for key in pending:
-        file, wavelength = split_key(key)
         try:
-            if wavelength is None:
-                chunk.append((key, load(file, **reader_options(args))))
-            else:
-                from brdfjax.formats import load_spectral
-
-                chunk.append((key, load_spectral(file, [wavelength])[wavelength]))
+            chunk.append((key, read_sample(key, args)))
         except (DataError, ValueError, OSError) as error:
             unread[key] = {"params": dict.fromkeys(names, float("nan")),
                             "error": float("nan"), "status": "failed", "message": str(error)}
@@ -347,6 +344,51 @@ def _chunks(pending, args, unread: dict, names):
             chunk = []
     if chunk:
         yield chunk
+
+
+def read_sample(key: str, args):
+    """The measurements of one sample key: a file, or one wavelength of a spectral file."""
+    from brdfjax.formats import load, load_spectral
+
+    file, wavelength = split_key(key)
+    if wavelength is None:
+        return load(file, **reader_options(args))
+    return load_spectral(file, [wavelength])[wavelength]
+
+
+def choose_model(keys, args) -> str:
+    """``--model auto`` of a batch: one model for every sample, the one with the lowest
+    median cv_error over the first `AUTO_SAMPLES` samples that can be compared (one model
+    keeps the CSV's columns, and the samples' parameters, comparable). Said on stderr."""
+    import numpy as np
+
+    from brdfjax.measurements import DataError
+    from brdfjax.selection import compare_models
+
+    errors, used, reasons = {}, 0, []
+    for key in keys:
+        try:
+            comparison = compare_models(read_sample(key, args), seed=args.seed)
+        except (DataError, ValueError, OSError) as error:
+            reasons.append(f"{key}: {error}")
+            continue
+        for score in comparison.scores:
+            errors.setdefault(score.name, []).append(score.cv_error)
+        used += 1
+        if used == AUTO_SAMPLES:
+            break
+    if not used:
+        raise ValueError("--model auto: no sample could be cross-validated to choose a model "
+                         f"({reasons[0] if reasons else 'no inputs'}); give --model NAME")
+    median = {name: float(np.median(values)) for name, values in errors.items()}
+    ranked = sorted(median, key=lambda name: median[name] if np.isfinite(median[name])
+                    else np.inf)
+    best, runner = ranked[0], ranked[1] if len(ranked) > 1 else None
+    print(f"--model auto: {best}, the lowest median cv_error ({100 * median[best]:.3g} %) "
+          f"over {used} of {len(keys)} samples"
+          + (f"; next {runner} ({100 * median[runner]:.3g} %)" if runner else ""),
+          file=sys.stderr)
+    return best
 
 
 def _fit_chunks(chunks, scheduler, options, record) -> list:
