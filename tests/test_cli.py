@@ -175,8 +175,13 @@ def test_a_failed_fit_exits_1_with_the_reason(tmp_path, capsys, monkeypatch):
     assert code == 1
     captured = capsys.readouterr()
     assert "status failed" in captured.out and "the fit failed" in captured.err
-    record = json.loads(out.read_text())
+    record = json.loads(out.read_text(), parse_constant=strict_json)
     assert record["status"] == "failed" and "no Levenberg-Marquardt start" in record["message"]
+    assert record["error"] is None  # NaN is not JSON: written as null
+
+
+def strict_json(name):
+    raise AssertionError(f"{name} in a JSON file: strict readers refuse it")
 
 
 def test_numerical_warnings_become_one_line_each(monkeypatch, capsys):

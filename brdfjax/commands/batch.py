@@ -421,15 +421,14 @@ def _fit_chunks(chunks, scheduler, options, record) -> list:
 
 
 def _write_json(directory, batch: dict) -> None:
-    import json
 
-    from brdfjax.formats import write_atomically
+    from brdfjax.formats import json_text, write_atomically
 
     for key, result in batch.items():
         file, wavelength = split_key(key)
         record = {"file": file, **({} if wavelength is None else {"wavelength_nm": wavelength})}
         write_atomically(Path(directory) / f"{json_name(key)}.json",
-                         json.dumps({**record, **result}, indent=2) + "\n")
+                         json_text({**record, **result}))
 
 
 def _summary(rows: dict, files, lost) -> int:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import json
 from pathlib import Path
 
 import numpy as np
@@ -158,9 +157,9 @@ def run_fit(args) -> None:
     if result.status == "failed":
         result = dataclasses.replace(result, message=failure_reason())
         if args.json:
-            from brdfjax.formats import write_atomically
+            from brdfjax.formats import json_text, write_atomically
 
-            write_atomically(args.json, json.dumps(result.to_dict(), indent=2) + "\n")
+            write_atomically(args.json, json_text(result.to_dict()))
         raise ValueError(f"{args.file}: the fit failed: {result.message}")
     calibration = validate_and_predict(result, data, args) if args.cv or args.predict else None
     uncertainty = estimate_uncertainty(result, data, args)
@@ -272,7 +271,7 @@ def write_outputs(result, data, args, uncertainty=None, calibration=None) -> Non
     bands: where a new measurement falls (`brdfjax.prediction`). Data that are not in the
     plane of incidence are drawn as polar maps of data, model and residual.
     """
-    from brdfjax.formats import replace_atomically, write_atomically
+    from brdfjax.formats import json_text, replace_atomically, write_atomically
 
     record = result.to_dict()
     bands = None
@@ -291,7 +290,7 @@ def write_outputs(result, data, args, uncertainty=None, calibration=None) -> Non
             print(f"plot: no curve band drawn, the {uncertainty.method} result is "
                   f"{uncertainty.status.replace('_', ' ')} (see its warnings above)")
     if args.json:
-        write_atomically(args.json, json.dumps(record, indent=2) + "\n")
+        write_atomically(args.json, json_text(record))
     if args.plot and not data.in_plane:
         from brdfjax.objective import brdf_values, prepare
         from brdfjax.plot import plot_polar_maps

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import json
-
 from brdfjax.commands import add_reader_options, reader_options
 
 
@@ -28,7 +26,7 @@ def register(subparsers) -> None:
 
 def run_models(args) -> None:
     from brdfjax.cache import enable
-    from brdfjax.formats import load, replace_atomically, write_atomically
+    from brdfjax.formats import json_text, load, replace_atomically, write_atomically
     from brdfjax.selection import compare_models
 
     enable()
@@ -38,7 +36,7 @@ def run_models(args) -> None:
     print(f"{data.name}: {len(data)} points, models ranked by cv_error")
     print(comparison.table())
     if args.json:
-        write_atomically(args.json, json.dumps(comparison.to_dict(), indent=2) + "\n")
+        write_atomically(args.json, json_text(comparison.to_dict()))
     if args.plot:
         from brdfjax.plot import plot_models
 

@@ -14,6 +14,8 @@
 
 from __future__ import annotations
 
+import json
+import math
 import os
 import secrets
 import stat
@@ -152,6 +154,23 @@ def _reader(path):
     raise DataError(f"unknown format {suffix!r}", path,
                     hint="brdfjax reads .csv (its own or NIST's), .astm (ASTM E1392), "
                          ".xls (J&C RT-300S) and .bsdf (Zemax tabular)")
+
+
+def json_text(value) -> str:
+    """``value`` as indented JSON with a final newline. A float that is not finite (the E of
+    a failed fit) is written as null: strict JSON has no NaN or Infinity, which Python's
+    `json` would otherwise write and other readers refuse."""
+
+    def finite(x):
+        if isinstance(x, dict):
+            return {k: finite(v) for k, v in x.items()}
+        if isinstance(x, (list, tuple)):
+            return [finite(v) for v in x]
+        if isinstance(x, float) and not math.isfinite(x):
+            return None
+        return x
+
+    return json.dumps(finite(value), indent=2, allow_nan=False) + "\n"
 
 
 def write_atomically(path, text: str) -> None:
