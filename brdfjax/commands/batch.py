@@ -421,7 +421,6 @@ def _fit_chunks(chunks, scheduler, options, record) -> list:
 
 
 def _write_json(directory, batch: dict) -> None:
-
     from brdfjax.formats import json_text, write_atomically
 
     for key, result in batch.items():
