@@ -431,8 +431,9 @@ def bench_paper(base: Path, rounds: int, batch_samples: int):
                   f"Same E of the warm fit on both sides (1e-6): {'yes' if same_e else 'no'}; "
                   f"largest relative difference of the batch's E between the sides: "
                   f"{batch_same:.1e}. Load average (1 min) after each process: "
-                  f"{min(loads):.1f}-{max(loads):.1f} on {os.cpu_count()} cores: above "
-                  "the core count, other jobs shared the cores, which inflates both sides.")
+                  f"{min(loads):.1f}-{max(loads):.1f} on {os.cpu_count()} cores"
+                  + (": above the core count, other jobs shared the cores, which inflates "
+                     "both sides." if max(loads) > os.cpu_count() else "."))
 
 
 def main() -> None:
