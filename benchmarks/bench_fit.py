@@ -46,6 +46,7 @@ from brdfjax.evolve import score_population
 from brdfjax.fitting import fit
 from brdfjax.formats import load
 from brdfjax.model import PAPER_SAMPLES
+from brdfjax.objective import error as objective_error
 from brdfjax.objective import problem
 from brdfjax.synthetic import paper_sample
 
@@ -265,7 +266,7 @@ def error(z):
     return r @ r if np.all(np.isfinite(r)) else np.inf
 de = differential_evolution(error, [(0, 1)] * 5, seed=0, polish=False)
 ls = least_squares(residual, de.x, bounds=(0, 1))
-print(error(ls.x))
+print(*params(ls.x), error(ls.x))
 """
 
 
@@ -282,10 +283,6 @@ def bench_cold():
         subprocess.run(command, check=True, capture_output=True, **kwargs)
         return time.perf_counter() - tic
 
-    out = Path(tempfile.mkdtemp()) / "fit.json"
-    subprocess.run([*cli, "--uncertainty", "none", "--json", str(out)], check=True,
-                   capture_output=True, env=env)
-    e_brdfjax = json.loads(out.read_text())["error"]
 
     first = wall(cli, env=env)
     later = float(np.median([wall(cli, env=env) for _ in range(3)]))
@@ -295,8 +292,16 @@ def bench_cold():
     script.write_text(SCIPY_SCRIPT.format(tests=str(REPO / "tests")))
     scipy = float(np.median([wall([sys.executable, str(script), str(train)])
                              for _ in range(3)]))
-    e_scipy = float(subprocess.run([sys.executable, str(script), str(train)], check=True,
-                                   capture_output=True, text=True).stdout.split()[-1])
+    # E of both fits, each computed by brdfjax on the same data: the script moves exact
+    # specular points by 1e-6 rad (its transcription is 0/0 there), so its own E is of a
+    # slightly different problem.
+    out = Path(tempfile.mkdtemp()) / "fit.json"
+    subprocess.run([*cli, "--uncertainty", "none", "--json", str(out)], check=True,
+                   capture_output=True, env=env)
+    e_brdfjax = json.loads(out.read_text())["error"]
+    printed = subprocess.run([sys.executable, str(script), str(train)], check=True,
+                             capture_output=True, text=True).stdout.split()
+    e_scipy = float(objective_error(np.array(printed[:5], dtype=float), problem(load(train))))
     write_section("cold", "## Cold start: `brdfjax fit` as a new process (716 points)\n\n"
                   "Targets: first run ever at most 15 s; later runs (persistent compilation "
                   "cache) no slower than the equivalent NumPy + scipy DE + LS script as a "
@@ -309,8 +314,10 @@ def bench_cold():
                   f"| `brdfjax fit --uncertainty none`, warm cache (median of 3) | "
                   f"{fit_only:.2f} |\n"
                   f"| NumPy model + scipy DE + LS script (median of 3) | {scipy:.2f} |\n\n"
-                  f"E: brdfjax {100 * e_brdfjax:.6g} %, the script {100 * e_scipy:.6g} % "
-                  f"(the same to 1e-6: {'yes' if abs(e_scipy / e_brdfjax - 1) <= 1e-6 else 'no'}).")
+                  f"E of Eq. (6) on the training data, both computed by brdfjax: brdfjax's fit "
+                  f"{100 * e_brdfjax:.6g} %, the script's parameters {100 * e_scipy:.6g} % "
+                  f"(the script's own E, {100 * float(printed[5]):.6g} %, is of its "
+                  "transcription, which moves exact specular points by 1e-6 rad).")
 
 
 if __name__ == "__main__":
