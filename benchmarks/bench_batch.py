@@ -291,7 +291,7 @@ def main() -> None:
               for size, r in scaling.items()]
     lines += ["", ("Chunks hold at most 256 samples (`chunk_size`), so memory stops growing "
                    "past one chunk."),
-              "", ("GPU: see the gpu section (an H100 ran these batches about 4x slower than "
+              "", ("GPU: see the gpu section (an H100 ran these batches 3-4x slower than "
                    "these 2 CPU cores).")]
     text = "\n".join(lines)
     print(text)

@@ -11,7 +11,7 @@ the machines. On the GPU the model evaluation and the linear solves run on the d
 JAX's CPU-only tricks (several CPU devices) do not apply.
 
 Measured on an H100 (2026-11-26): 14 samples per second warm, slower than the 2-core CPU
-(60 per second): the fits are many small sequential steps (the GA's generations, each LM
+(46-62 per second): the fits are many small sequential steps (the GA's generations, each LM
 step of each start), so kernel launches, not arithmetic, set the time. 10 000 samples
 would take about 12 minutes there, more than a device call allows, and are not run.
 """
