@@ -247,12 +247,11 @@ def bench_cv(models):
     from brdfjax.bounds import default_bounds, from_unit
     from brdfjax.compare import scipy_vp, unit_objectives
     from brdfjax.models import get
-    from brdfjax.objective import brdf_values, prepare, relative_error, targets
-    from brdfjax.validation import cross_validate, incidence_groups
+    from brdfjax.objective import brdf_values, prepare
+    from brdfjax.validation import cross_validate, held_out_error, incidence_groups
 
     rows, misses = [], []
     for label, data in real_runs():
-        target, _ = targets(data)
         interior = [mask for *_, mask in incidence_groups(data)][1:-1]
         cells = []
         for name in models:
@@ -268,8 +267,7 @@ def bench_cv(models):
                 trained.append(e_train)
                 values = np.asarray(brdf_values(from_unit(unit, default_bounds(model)),
                                                 prepare(data, model), model))
-                held.append(relative_error((values * np.cos(data.theta_r))[mask],
-                                           target[mask], np.ones(int(mask.sum()))))
+                held.append(held_out_error(values, data, mask))
             theirs = float(np.mean(held))
             ratio = ours / theirs
             cells.append(f"{100 * ours:.4g} / {100 * theirs:.4g}")

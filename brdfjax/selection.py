@@ -59,7 +59,7 @@ class Comparison:
 
     @property
     def ranking(self) -> list:
-        return [s.name for s in sorted(self.scores, key=lambda s: _rank_key(s.cv_error))]
+        return ranked({s.name: s.cv_error for s in self.scores})
 
     @property
     def best(self) -> ModelScore:
@@ -102,8 +102,10 @@ class Comparison:
         return "\n".join(lines)
 
 
-def _rank_key(value: float) -> float:
-    return value if np.isfinite(value) else np.inf
+def ranked(cv_errors: dict) -> list:
+    """Model names by cv_error, lowest first; a NaN (no interior fold) ranks last."""
+    return sorted(cv_errors, key=lambda name: cv_errors[name] if np.isfinite(cv_errors[name])
+                  else np.inf)
 
 
 def information_criteria(result, data: Measurements) -> tuple[float, float]:

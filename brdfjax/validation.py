@@ -145,6 +145,16 @@ def incidence_groups(data: Measurements) -> list[tuple[str, float, float, np.nda
     return groups
 
 
+def held_out_error(values, data: Measurements, mask) -> float:
+    """E of Eq. (6) of the f_r ``values`` (1/sr, one per point of ``data``) on the points
+    ``mask`` alone, unweighted: cv_error's scale, whatever loss the fit minimised."""
+    from brdfjax.objective import relative_error, targets
+
+    target, _ = targets(data)
+    projected = np.asarray(values) * np.cos(data.theta_r)
+    return relative_error(projected[mask], target[mask], np.ones(int(np.sum(mask))))
+
+
 def cross_validate(data: Measurements, model=None, *, seed: int = 0, bounds=None,
                    full_fit: bool = False, **options) -> CrossValidation:
     """Leave-one-incidence-out cross-validation of a model, all folds in one batched fit.
@@ -163,7 +173,7 @@ def cross_validate(data: Measurements, model=None, *, seed: int = 0, bounds=None
     """
     from brdfjax.batch import fit_batch
     from brdfjax.models import get
-    from brdfjax.objective import brdf_values, prepare, relative_error, targets
+    from brdfjax.objective import brdf_values, prepare
 
     model = get(model)
     groups = incidence_groups(data)
@@ -173,16 +183,14 @@ def cross_validate(data: Measurements, model=None, *, seed: int = 0, bounds=None
                         hint="measure more incidences, or skip --cv")
     samples = [data.select(~mask) for _, _, _, mask in groups] + ([data] if full_fit else [])
     results = fit_batch(samples, model=model, seed=seed, bounds=bounds, **options)
-    target, _ = targets(data)
-    weight = np.ones_like(target)  # cv_error is E of Eq. (6) whatever loss the folds fit
-    geometry, cos_r = prepare(data, model), np.cos(data.theta_r)
+    geometry = prepare(data, model)
     folds = []
     for k, ((label, low, high, mask), result) in enumerate(zip(groups, results)):
         values = np.asarray(brdf_values(result.vector, geometry, model))
         folds.append(Fold(
             label=label, low=low, high=high, interior=0 < k < len(groups) - 1,
             train_error=result.error,
-            held_error=relative_error((values * cos_r)[mask], target[mask], weight[mask]),
+            held_error=held_out_error(values, data, mask),
             params=result.vector, status=result.status, predicted=values[mask],
             index=np.flatnonzero(mask)))
     return CrossValidation(model.name, folds, results[-1] if full_fit else None)

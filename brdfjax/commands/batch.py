@@ -363,7 +363,7 @@ def choose_model(keys, args) -> str:
     import numpy as np
 
     from brdfjax.measurements import DataError
-    from brdfjax.selection import compare_models
+    from brdfjax.selection import compare_models, ranked
 
     errors, used, reasons = {}, 0, []
     for key in keys:
@@ -381,9 +381,8 @@ def choose_model(keys, args) -> str:
         raise ValueError("--model auto: no sample could be cross-validated to choose a model "
                          f"({reasons[0] if reasons else 'no inputs'}); give --model NAME")
     median = {name: float(np.median(values)) for name, values in errors.items()}
-    ranked = sorted(median, key=lambda name: median[name] if np.isfinite(median[name])
-                    else np.inf)
-    best, runner = ranked[0], ranked[1] if len(ranked) > 1 else None
+    order = ranked(median)
+    best, runner = order[0], order[1] if len(order) > 1 else None
     print(f"--model auto: {best}, the lowest median cv_error ({100 * median[best]:.3g} %) "
           f"over {used} of {len(keys)} samples"
           + (f"; next {runner} ({100 * median[runner]:.3g} %)" if runner else ""),
