@@ -207,7 +207,7 @@ def solve_linear(params, prob: Problem, bounds: Bounds):
         (the parameter vector with its linear entries solved, E).
     """
     model = prob.model
-    columns, units = model.columns(params, prob.scene)
+    columns, units = model.columns(params, prob.scene, bounds)
     c, t, w = prob.scene.cos_theta_r, prob.target, prob.weight
     scaled, to_x = [], []
     for column, unit in zip(columns, units):

@@ -13,7 +13,7 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-from brdfjax.models.base import Model, broadcast_angles, safe_divide, safe_sqrt
+from brdfjax.models.base import Model, broadcast_angles, mixture, safe_divide, safe_sqrt
 
 
 class HalfVector(NamedTuple):
@@ -64,6 +64,8 @@ class SpecularMicrofacet(Model):
 
     Parameters (ks, alpha, f0, kd). ``ks F = ks f0 + ks (1 - f0) (1 - cos td)^5``: both
     products are non-negative and enter linearly, as kd does, so only alpha is searched.
+    They are solved as the weights of the lobe at f0's two bounds (`mixture`), which keeps
+    f0 within its bounds however narrow.
     """
 
     linear = ("ks f0", "ks (1 - f0)", "kd")
@@ -81,21 +83,22 @@ class SpecularMicrofacet(Model):
         fresnel = f0 + (1.0 - f0) * schlick_weight(geometry.cos_d)
         return kd + ks * fresnel * self.lobe(alpha, geometry)
 
-    def columns(self, params, geometry):
-        lobe = self.lobe(params[1], geometry)
-        return ([lobe, lobe * schlick_weight(geometry.cos_d), jnp.ones_like(lobe)],
-                [1.0, 1.0, 1.0])
+    def columns(self, params, geometry, bounds):
+        """The lobe times F at f0's lower and upper bounds, and the diffuse 1."""
+        lobe, weight = self.lobe(params[1], geometry), schlick_weight(geometry.cos_d)
+        return ([lobe * (f0 + (1.0 - f0) * weight) for f0 in (bounds.lower[2], bounds.upper[2])]
+                + [jnp.ones_like(lobe)], [1.0, 1.0, 1.0])
 
     def coefficient_bounds(self, bounds):
-        """``ks f0`` and ``ks (1 - f0)`` in [0, ks_max]; kd in its own bounds."""
+        """The two lobe weights in [0, ks_max]; kd in its own bounds."""
         zero = jnp.zeros_like(bounds.lower[0])
         return (jnp.stack([zero, zero, bounds.lower[3]]),
                 jnp.stack([bounds.upper[0], bounds.upper[0], bounds.upper[3]]))
 
     def assemble(self, coefficients, params, bounds):
-        """(ks, alpha, f0, kd) from ``ks f0``, ``ks (1 - f0)`` and kd; f0 kept where ks is 0."""
-        along, across, kd = coefficients[0], coefficients[1], coefficients[2]
-        total = along + across
-        f0 = safe_divide(along, total, total > 0, params[2])
-        return jnp.stack([jnp.clip(total, bounds.lower[0], bounds.upper[0]), params[1],
-                          jnp.clip(f0, bounds.lower[2], bounds.upper[2]), kd])
+        """(ks, alpha, f0, kd) from the lobe weights (`mixture`) and kd; f0 kept where ks
+        is 0."""
+        ks, f0 = mixture(coefficients[0], coefficients[1], bounds.lower[2], bounds.upper[2],
+                         params[2])
+        return jnp.stack([jnp.clip(ks, bounds.lower[0], bounds.upper[0]), params[1], f0,
+                          coefficients[2]])

@@ -127,8 +127,12 @@ class Model:
         """f_r (1/sr) from a parameter vector (P,) on this model's geometry."""
         raise NotImplementedError
 
-    def columns(self, params, geometry) -> tuple[list, list]:
+    def columns(self, params, geometry, bounds) -> tuple[list, list]:
         """The linear split: ``f_r = sum_k c_k unit_k column_k`` at fixed other parameters.
+
+        The coefficients' box (`coefficient_bounds`) must map into the parameters' box
+        through `assemble` (a column may depend on ``bounds`` for that: RPV's), so that E
+        of the solved coefficients is E of the assembled parameters.
 
         Returns:
             ``(columns, units)``: K arrays with the geometry's shape, and K scalars. The
@@ -170,6 +174,24 @@ def safe_divide(numerator, denominator, where, fallback):
     """numerator / denominator where ``where``, else ``fallback``, with finite gradients."""
     safe = jnp.where(where, denominator, 1.0)
     return jnp.where(where, numerator / safe, fallback)
+
+
+def mixture(at_low, at_high, low, high, fallback):
+    """A scale and a parameter from the weights of a model at the two ends of that
+    parameter's range.
+
+    Where the parameter enters as ``scale (A + parameter B)`` (GGX's ``ks`` and ``f0``,
+    RPV's ``rho0`` and ``rhoc``), the model is ``at_low`` times its value at the parameter's
+    lower bound plus ``at_high`` times its value at the upper. Both weights non-negative is
+    exactly the parameter within its bounds, so the linear solve's box keeps it there.
+
+    Returns:
+        (scale = at_low + at_high, the parameter: the weights' mean of its bounds, clipped;
+        ``fallback`` where both weights are 0).
+    """
+    scale = at_low + at_high
+    value = safe_divide(at_low * low + at_high * high, scale, scale > 0, fallback)
+    return scale, jnp.clip(value, low, high)
 
 
 def safe_sqrt(x):

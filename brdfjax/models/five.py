@@ -112,7 +112,7 @@ class FiveParameter(Model):
         kb, kr, a, b, kd = (params[k] for k in range(5))
         return kb * lobe(kr, a, b, geometry) + kd
 
-    def columns(self, params, geometry):
+    def columns(self, params, geometry, bounds):
         kr, a, b = params[1], params[2], params[3]
         offset = jnp.maximum(b, 0.0)
         return ([lobe(kr, a, b, geometry, offset), jnp.ones_like(geometry.cos_theta_r)],

@@ -35,7 +35,7 @@ class Lambert(Model):
     def evaluate(self, params, geometry):
         return params[0] * jnp.ones_like(geometry.cos_theta_r)
 
-    def columns(self, params, geometry):
+    def columns(self, params, geometry, bounds):
         return [jnp.ones_like(geometry.cos_theta_r)], [1.0]
 
     def coefficient_bounds(self, bounds):

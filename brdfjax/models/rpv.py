@@ -12,8 +12,8 @@ cos tr)``, and ``1 / (1 + Gd)`` is written with the cosines multiplied through.
 At exactly 90 deg (``ti`` or ``tr``) RPV is outside its domain: M diverges for k < 1. The
 code takes each cosine as at least `GRAZING_COSINE` in M (about 89.99999994 deg), so values
 and gradients stay finite there: huge for k < 1, while the fitted projected BRDF
-``f_r cos tr`` still goes to 0. ``rho0`` and ``rho0 (1 - rhoc)`` enter linearly; k and
-asymmetry are searched.
+``f_r cos tr`` still goes to 0. ``rho0`` and ``rho0 (1 - rhoc)`` enter linearly (solved as
+the weights of RPV at rhoc's two bounds, `Rpv.columns`); k and asymmetry are searched.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-from brdfjax.models.base import Model, Parameter, broadcast_angles, safe_divide, safe_sqrt
+from brdfjax.models.base import Model, Parameter, broadcast_angles, mixture, safe_divide, safe_sqrt
 
 GRAZING_COSINE = 1e-9
 
@@ -92,16 +92,21 @@ class Rpv(Model):
         return rho0 * self._base(k, asymmetry, geometry) * (1.0 + (1.0 - rhoc)
                                                            * geometry.hot_spot)
 
-    def columns(self, params, geometry):
+    def columns(self, params, geometry, bounds):
+        """RPV per unit rho0 at rhoc's lower and upper bounds (`mixture`: the solve then
+        keeps rhoc within its bounds; ``rho0`` and ``rho0 (1 - rhoc)`` boxed separately let
+        it pick a hot spot that rhoc's bounds forbid)."""
         base = self._base(params[1], params[2], geometry)
-        return [base, base * geometry.hot_spot], [1.0, 1.0]
+        return [base * (1.0 + (1.0 - rhoc) * geometry.hot_spot)
+                for rhoc in (bounds.lower[3], bounds.upper[3])], [1.0, 1.0]
 
     def coefficient_bounds(self, bounds):
-        rho0_low, rho0_high = bounds.lower[0], bounds.upper[0]
-        return (jnp.stack([rho0_low, (1.0 - bounds.upper[3]) * rho0_high]),
-                jnp.stack([rho0_high, (1.0 - bounds.lower[3]) * rho0_high]))
+        zero = jnp.zeros_like(bounds.upper[0])
+        return jnp.stack([zero, zero]), jnp.stack([bounds.upper[0], bounds.upper[0]])
 
     def assemble(self, coefficients, params, bounds):
-        rho0 = coefficients[0]
-        rhoc = 1.0 - safe_divide(coefficients[1], rho0, rho0 > 0, 1.0 - params[3])
-        return params.at[0].set(rho0).at[3].set(jnp.clip(rhoc, bounds.lower[3], bounds.upper[3]))
+        """rho0 and rhoc from the weights at rhoc's bounds (`mixture`); rhoc kept where
+        rho0 is 0."""
+        rho0, rhoc = mixture(coefficients[0], coefficients[1], bounds.lower[3], bounds.upper[3],
+                             params[3])
+        return params.at[0].set(jnp.clip(rho0, bounds.lower[0], bounds.upper[0])).at[3].set(rhoc)

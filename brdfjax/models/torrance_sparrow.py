@@ -87,7 +87,7 @@ class TorranceSparrow(Model):
         g, c, n, rho0 = (params[k] for k in range(4))
         return g * self._specular(c, n, geometry) + rho0 * geometry.diffuse
 
-    def columns(self, params, geometry):
+    def columns(self, params, geometry, bounds):
         return [self._specular(params[1], params[2], geometry), geometry.diffuse], [1.0, 1.0]
 
     def coefficient_bounds(self, bounds):
