@@ -178,12 +178,30 @@ def test_linear_solve_keeps_narrow_bounds(white_paint, name, z):
     assert_same_error(float(e), e_direct, float(solved[0]), low[0], high[0])
 
 
+@pytest.mark.xfail(strict=True, reason="known defect: a scale that is the sum of two "
+                   "weights (RPV's rho0, GGX's ks) is clipped after the solve, not solved "
+                   "within its bounds; this passes once box_least_squares bounds the sum")
+@pytest.mark.parametrize("name", ["rpv", "ggx"])
+def test_linear_solve_keeps_a_narrow_scale(white_paint, name):
+    """With the scale's range narrowed too (rho0 3-10, ks 1e-4 to 1e-2), the solve's E is
+    the E of the parameters it returns, at 50 random points of the box."""
+    model = get(name)
+    scale = {"rpv": (3.0, 10.0), "ggx": (1e-4, 1e-2)}[name]
+    bounds = brdfjax.make_bounds({model.names[0]: scale}, model=model)
+    prob = problem(white_paint.at_incidences([10, 30]), model)
+    for z in np.random.default_rng(0).uniform(size=(50, model.size)):
+        solved, e = linear_solve()(np.asarray(from_unit(z, bounds)), prob, bounds)
+        e_direct = float(np.sum(np.asarray(prob.weight) * (
+            np.asarray(projected(np.asarray(solved), prob.scene, model)) - prob.target) ** 2))
+        assert float(e) == pytest.approx(e_direct, rel=1e-9, abs=1e-14)
+
+
 def assert_same_error(e, e_direct, scale, low, high):
     """The solve's E is the E of its parameters. The scale (kb, ks, g, rho0, kd) is a sum
     of coefficients in some models, clipped into its bounds: where it is clipped up to its
     lower bound (a lobe the data do not want, weighted 0 by the solve), the parameters'
     E can only be higher (by that bound's share, 1e-4 for GGX at alpha = 0.002); nothing is
-    checked on the upper one."""
+    checked on the upper one (the known defect of `test_linear_solve_keeps_a_narrow_scale`)."""
     if low < scale < high:
         assert e == pytest.approx(e_direct, rel=1e-9, abs=1e-14)
     elif scale <= low:

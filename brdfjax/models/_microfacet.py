@@ -68,7 +68,7 @@ class SpecularMicrofacet(Model):
     f0 within its bounds however narrow.
     """
 
-    linear = ("ks f0", "ks (1 - f0)", "kd")
+    linear = ("ks at f0's lower bound", "ks at f0's upper bound", "kd")
     peak = "specular"
 
     def lobe(self, alpha, geometry: HalfVector):

@@ -130,9 +130,11 @@ class Model:
     def columns(self, params, geometry, bounds) -> tuple[list, list]:
         """The linear split: ``f_r = sum_k c_k unit_k column_k`` at fixed other parameters.
 
-        The coefficients' box (`coefficient_bounds`) must map into the parameters' box
+        The coefficients' box (`coefficient_bounds`) should map into the parameters' box
         through `assemble` (a column may depend on ``bounds`` for that: RPV's), so that E
-        of the solved coefficients is E of the assembled parameters.
+        of the solved coefficients is E of the assembled parameters. Where a scale is the
+        sum of two coefficients (`mixture`) it does not: the box bounds each weight, not
+        their sum, and `assemble` clips the sum into the scale's bounds.
 
         Returns:
             ``(columns, units)``: K arrays with the geometry's shape, and K scalars. The
@@ -183,7 +185,8 @@ def mixture(at_low, at_high, low, high, fallback):
     Where the parameter enters as ``scale (A + parameter B)`` (GGX's ``ks`` and ``f0``,
     RPV's ``rho0`` and ``rhoc``), the model is ``at_low`` times its value at the parameter's
     lower bound plus ``at_high`` times its value at the upper. Both weights non-negative is
-    exactly the parameter within its bounds, so the linear solve's box keeps it there.
+    exactly the parameter within its bounds, so the linear solve's box keeps it there. The
+    scale is not kept: the box bounds each weight, not their sum, which is clipped here.
 
     Returns:
         (scale = at_low + at_high, the parameter: the weights' mean of its bounds, clipped;

@@ -8,7 +8,8 @@
 Written without cancellation or division by zero: ``cos^2 th (alpha^2 - 1) + 1`` as
 ``sin^2 th + alpha^2 cos^2 th``, and ``G1(t) / cos t`` as
 ``2 / (cos t + sqrt(cos^2 t + alpha^2 sin^2 t))``, finite at grazing angles (``2 / alpha``
-at 90 deg). ``ks f0``, ``ks (1 - f0)`` and ``kd`` enter linearly: only alpha is searched.
+at 90 deg). ks F (two weights, `SpecularMicrofacet`) and kd enter linearly: only alpha is
+searched.
 """
 
 from __future__ import annotations

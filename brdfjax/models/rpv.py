@@ -65,7 +65,7 @@ class Rpv(Model):
         Parameter("rhoc", -2.0, 1.95, "linear",
                   "hot-spot strength: H = 2 - rhoc at back-scatter, kept above 0.05"),
     )
-    linear = ("rho0", "rho0 (1 - rhoc)")
+    linear = ("rho0 at rhoc's lower bound", "rho0 at rhoc's upper bound")
     peak = "backscatter"
 
     def geometry(self, theta_i, theta_r, phi_r, in_plane):
