@@ -225,7 +225,11 @@ def solve_linear(params, prob: Problem, bounds: Bounds):
     projections = [(w * t) @ s for s in scaled]
     to_x = jnp.stack([jnp.asarray(x, dtype=c.dtype) for x in to_x])
     low, high = model.coefficient_bounds(bounds)
-    x, value = box_least_squares(gram, projections, jnp.sum(w * t * t), low * to_x, high * to_x)
+    pair = model.scale_sum(bounds)
+    if pair is not None:  # x_0 / to_x_0 + x_1 / to_x_1 within the scale's bounds
+        pair = ((1.0 / to_x[0], 1.0 / to_x[1]), *pair)
+    x, value = box_least_squares(gram, projections, jnp.sum(w * t * t), low * to_x, high * to_x,
+                                 pair)
     coefficients = jnp.clip(x / to_x, low, high)
     return model.assemble(coefficients, params, bounds), value
 
@@ -235,42 +239,107 @@ def solve_linear(params, prob: Problem, bounds: Bounds):
 PIVOT_TOLERANCE = 1e-6
 
 
-def box_least_squares(gram, projections, total, low, high):
+def box_least_squares(gram, projections, total, low, high, pair=None):
     """Exact minimum of ``q(x) = total - 2 p.x + x.G.x`` over the box ``low <= x <= high``.
 
-    q is a convex quadratic, so its minimum over the box is the unconstrained minimum of
-    some face: each coordinate free, at its lower or at its upper bound. All ``3^K`` faces
-    are tried (K, the number of linear coefficients, is at most 3 here: 27 tiny solves,
-    unrolled Cholesky factorisations), and the best face whose free solution lies inside
-    the box wins. The faces with every coordinate at a bound always qualify.
+    q is a convex quadratic, so its minimum over a polytope is the unconstrained minimum of
+    some face. In the box each coordinate is free, at its lower or at its upper bound: all
+    ``3^K`` faces are tried (K, the number of linear coefficients, is at most 3 here: 27
+    tiny solves, unrolled Cholesky factorisations), and the best face whose free solution
+    lies inside the box wins. The faces with every coordinate at a bound always qualify.
+
+    With ``pair = ((w0, w1), s_low, s_high)`` the first two coordinates are instead
+    non-negative with ``s_low <= w0 x0 + w1 x1 <= s_high`` (the weights of a `mixture`,
+    whose sum is a bounded scale). Their faces are the 9 of that trapezoid: its inside,
+    its 4 edges (a weight 0, or the sum on a bound, with the other free) and its 4 corners.
 
     Args:
         gram: G as a K x K nested list of scalars; projections: p, K scalars; total: q(0).
         low, high: the box (K,).
+        pair: the first two coordinates' constraint, or None.
 
     Returns:
         (x (K,), q(x) clipped at 0).
     """
     count = len(projections)
     candidates, values = [], []
-    for face in itertools.product(range(3), repeat=count):  # 0 free, 1 lower, 2 upper
-        free = [k for k in range(count) if face[k] == 0]
-        x = [low[k] if face[k] == 1 else high[k] for k in range(count)]
-        rhs = [projections[k] - sum(gram[k][j] * x[j] for j in range(count) if face[j])
-               for k in free]
-        solved, regular = _cholesky_solve([[gram[i][j] for j in free] for i in free], rhs)
-        for k, v in zip(free, solved):
-            x[k] = v
-        inside = regular
-        for k in free:
-            inside = inside & (x[k] >= low[k]) & (x[k] <= high[k])
+    for coords, inside_of in _faces(count, low, high, pair):
+        free = sorted({j for _, terms in coords for j in terms})
+        anchor = [a for a, _ in coords]
+        # x = a + B y over the free variables y: (B'GB) y = B'(p - G a)
+        residual = [projections[k] - sum(gram[k][m] * anchor[m] for m in range(count)
+                                          if not _is_zero(anchor[m])) for k in range(count)]
+        reduced = [[sum(_times(coords[k][1][i] * coords[m][1][j], gram[k][m])
+                        for k in range(count) if i in coords[k][1]
+                        for m in range(count) if j in coords[m][1]) for j in free]
+                   for i in free]
+        rhs = [sum(_times(coords[k][1][i], residual[k]) for k in range(count)
+                   if i in coords[k][1]) for i in free]
+        solved, regular = _cholesky_solve(reduced, rhs)
+        y = dict(zip(free, solved))
+        x = [a + sum(_times(b, y[j]) for j, b in terms.items()) for a, terms in coords]
         value = total - 2 * sum(projections[k] * x[k] for k in range(count)) + sum(
             gram[i][j] * x[i] * x[j] for i in range(count) for j in range(count))
-        candidates.append(jnp.stack(x))
-        values.append(jnp.where(inside & ~jnp.isnan(value), value, jnp.inf))
+        candidates.append(jnp.stack([jnp.asarray(v, dtype=jnp.result_type(total)) for v in x]))
+        values.append(jnp.where(regular & inside_of(x) & ~jnp.isnan(value), value, jnp.inf))
     values = jnp.stack(values)
     best = jnp.argmin(values)
     return jnp.stack(candidates)[best], jnp.maximum(values[best], 0.0)
+
+
+def _is_zero(value) -> bool:
+    return isinstance(value, float) and value == 0.0
+
+
+def _times(coefficient, value):
+    """``coefficient * value``, without an operation where the coefficient is the number 1."""
+    return value if isinstance(coefficient, float) and coefficient == 1.0 else coefficient * value
+
+
+def _faces(count, low, high, pair):
+    """The faces of `box_least_squares`' polytope: for each, every coordinate as
+    ``(constant, {free variable: coefficient})`` and a function of the solved x that says
+    whether the free solution lies inside the polytope."""
+    boxed = range(2 if pair is not None else 0, count)
+    box_states = []
+    for k in boxed:  # free, at the lower bound, at the upper bound
+        box_states.append([((0.0, {k: 1.0}), lambda x, k=k: (x[k] >= low[k]) & (x[k] <= high[k])),
+                           ((low[k], {}), None), ((high[k], {}), None)])
+    pair_states = [[]] if pair is None else _pair_faces(*pair)
+    for first in pair_states:
+        for rest in itertools.product(*box_states):
+            states = list(first) + list(rest)
+            coords = [coord for coord, _ in states]
+            checks = [check for _, check in states if check is not None]
+
+            def inside_of(x, checks=checks):
+                inside = jnp.asarray(True)
+                for check in checks:
+                    inside = inside & check(x)
+                return inside
+
+            yield coords, inside_of
+
+
+def _pair_faces(weights, s_low, s_high):
+    """The 9 faces of ``x0, x1 >= 0, s_low <= w0 x0 + w1 x1 <= s_high`` (variables 0, 1)."""
+    w0, w1 = weights
+
+    def total(x):
+        return w0 * x[0] + w1 * x[1]
+
+    inside = [(((0.0, {0: 1.0}), None), ((0.0, {1: 1.0}),
+               lambda x: (x[0] >= 0) & (x[1] >= 0) & (total(x) >= s_low) & (total(x) <= s_high)))]
+    edges = [(((0.0, {}), None), ((0.0, {1: 1.0}), lambda x: (total(x) >= s_low)
+                                                            & (total(x) <= s_high))),
+             (((0.0, {0: 1.0}), lambda x: (total(x) >= s_low) & (total(x) <= s_high)),
+              ((0.0, {}), None))]
+    for s in (s_low, s_high):  # the sum on a bound: x1 = (s - w0 x0) / w1, both >= 0
+        edges.append((((0.0, {0: 1.0}), lambda x: (x[0] >= 0) & (x[1] >= 0)),
+                      ((s / w1, {0: -w0 / w1}), None)))
+    corners = [(((0.0, {}), None), ((s / w1, {}), None)) for s in (s_low, s_high)]
+    corners += [(((s / w0, {}), None), ((0.0, {}), None)) for s in (s_low, s_high)]
+    return inside + edges + corners
 
 
 def _cholesky_solve(matrix, rhs):

@@ -95,6 +95,9 @@ class SpecularMicrofacet(Model):
         return (jnp.stack([zero, zero, bounds.lower[3]]),
                 jnp.stack([bounds.upper[0], bounds.upper[0], bounds.upper[3]]))
 
+    def scale_sum(self, bounds):
+        return bounds.lower[0], bounds.upper[0]
+
     def assemble(self, coefficients, params, bounds):
         """(ks, alpha, f0, kd) from the lobe weights (`mixture`) and kd; f0 kept where ks
         is 0."""

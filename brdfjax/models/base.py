@@ -133,8 +133,7 @@ class Model:
         The coefficients' box (`coefficient_bounds`) should map into the parameters' box
         through `assemble` (a column may depend on ``bounds`` for that: RPV's), so that E
         of the solved coefficients is E of the assembled parameters. Where a scale is the
-        sum of two coefficients (`mixture`) it does not: the box bounds each weight, not
-        their sum, and `assemble` clips the sum into the scale's bounds.
+        sum of two coefficients (`mixture`), `scale_sum` bounds that sum.
 
         Returns:
             ``(columns, units)``: K arrays with the geometry's shape, and K scalars. The
@@ -151,6 +150,11 @@ class Model:
     def assemble(self, coefficients, params, bounds):
         """The parameter vector (P,) with its linear part set from ``coefficients`` (K,)."""
         raise NotImplementedError
+
+    def scale_sum(self, bounds):
+        """Bounds (low, high) of the sum of the first two coefficients, where they are the
+        weights of a `mixture` whose sum is a bounded scale (RPV's rho0, GGX's ks); None
+        where no coefficients sum to a parameter."""
 
     def extra_starts(self, z, bounds):
         """More polish starts (E, P) in unit-cube coordinates, made from the best member
@@ -185,8 +189,9 @@ def mixture(at_low, at_high, low, high, fallback):
     Where the parameter enters as ``scale (A + parameter B)`` (GGX's ``ks`` and ``f0``,
     RPV's ``rho0`` and ``rhoc``), the model is ``at_low`` times its value at the parameter's
     lower bound plus ``at_high`` times its value at the upper. Both weights non-negative is
-    exactly the parameter within its bounds, so the linear solve's box keeps it there. The
-    scale is not kept: the box bounds each weight, not their sum, which is clipped here.
+    exactly the parameter within its bounds, so the linear solve's box keeps it there; the
+    solve keeps the scale in its bounds through `Model.scale_sum` (clipped here against
+    rounding only).
 
     Returns:
         (scale = at_low + at_high, the parameter: the weights' mean of its bounds, clipped;

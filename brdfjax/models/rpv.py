@@ -104,6 +104,9 @@ class Rpv(Model):
         zero = jnp.zeros_like(bounds.upper[0])
         return jnp.stack([zero, zero]), jnp.stack([bounds.upper[0], bounds.upper[0]])
 
+    def scale_sum(self, bounds):
+        return bounds.lower[0], bounds.upper[0]
+
     def assemble(self, coefficients, params, bounds):
         """rho0 and rhoc from the weights at rhoc's bounds (`mixture`); rhoc kept where
         rho0 is 0."""
