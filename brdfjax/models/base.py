@@ -190,8 +190,8 @@ def mixture(at_low, at_high, low, high, fallback):
     RPV's ``rho0`` and ``rhoc``), the model is ``at_low`` times its value at the parameter's
     lower bound plus ``at_high`` times its value at the upper. Both weights non-negative is
     exactly the parameter within its bounds, so the linear solve's box keeps it there; the
-    solve keeps the scale in its bounds through `Model.scale_sum` (clipped here against
-    rounding only).
+    solve keeps the scale in its bounds through `Model.scale_sum` (the caller clips it
+    against rounding only).
 
     Returns:
         (scale = at_low + at_high, the parameter: the weights' mean of its bounds, clipped;
