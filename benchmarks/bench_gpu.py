@@ -1,14 +1,16 @@
 """GPU timings, on a lent GPU machine (never required): batches and dense scans.
 
-    python benchmarks/bench_gpu.py [--quick]
+    python benchmarks/bench_gpu.py [--only batch dense] [--quick]
 
 Section ``gpu``: `brdfjax.fit_batch` of 256 and 1024 of bench_batch's synthetic 716-point
-samples in chunks of 1024, and the 101 250-point dense scans of bench_dense (five
-and ggx), on the machine's default JAX device. ``first`` is the first call (tracing and
-compilation included), ``warm`` a second call of the same size. The CPU rows of the batch
-and dense sections were measured on another machine (2 cores): compare throughput, not
-the machines. On the GPU the model evaluation and the linear solves run on the device;
-JAX's CPU-only tricks (several CPU devices) do not apply.
+samples in chunks of 1024. Section ``gpu-dense``: bench_dense's synthetic scans (five and
+ggx, 101 250 and 300 600 points) fitted the default way (searched on representative points)
+and on all points (`brdfjax.fitting.DENSE_POINTS` above the point count). ``first`` is the
+first call (tracing and compilation included), ``warm`` a second call of the same size, on
+the machine's default JAX device. The CPU rows of the batch and dense sections were
+measured on another machine (2 cores): compare throughput, not the machines. On the GPU the
+model evaluation and the linear solves run on the device; JAX's CPU-only tricks (several
+CPU devices) do not apply.
 
 Measured on an H100 (2026-11-26): 14 samples per second warm, slower than the 2-core CPU
 (46-62 per second): the fits are many small sequential steps (the GA's generations, each LM
@@ -28,7 +30,7 @@ sys.path.insert(0, str(REPO))
 
 from benchmarks import report
 from benchmarks.bench_batch import samples
-from benchmarks.bench_dense import scan
+from benchmarks.bench_dense import SIZES, scan
 from benchmarks.report import write_section
 
 CHUNK = 1024
@@ -55,17 +57,23 @@ def bench_batch(sizes):
     return rows
 
 
-def bench_dense(models):
+def bench_dense(models, sizes):
     import brdfjax
+    import brdfjax.fitting
 
-    rows = []
+    rows, default = [], brdfjax.fitting.DENSE_POINTS
     for model in models:
-        data = scan(model, 1.0, 1.6)
-        first, _ = timed(lambda data=data, model=model: brdfjax.fit(data, model=model))
-        warm, result = timed(lambda data=data, model=model: brdfjax.fit(data, model=model))
-        rows.append(f"| {model} | {len(data)} | {first:.1f} | {warm:.2f} | "
-                    f"{result.error:.10g} | {result.status} |")
-        print(rows[-1], flush=True)
+        for points in sizes:
+            data = scan(model, *SIZES[points])
+            for mode, threshold in (("representative", default), ("all points", len(data))):
+                brdfjax.fitting.DENSE_POINTS = threshold
+                first, _ = timed(lambda data=data, model=model: brdfjax.fit(data, model=model))
+                warm, result = timed(lambda data=data, model=model: brdfjax.fit(data,
+                                                                                model=model))
+                rows.append(f"| {model} | {len(data)} | {mode} | {first:.1f} | {warm:.2f} | "
+                            f"{result.error:.10g} | {result.status} |")
+                print(rows[-1], flush=True)
+    brdfjax.fitting.DENSE_POINTS = default
     return rows
 
 
@@ -73,23 +81,33 @@ def main() -> None:
     import jax
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--only", nargs="+", choices=("batch", "dense"),
+                        default=["batch", "dense"], help="sections to run")
     parser.add_argument("--quick", action="store_true", help="small sizes; write nothing")
     args = parser.parse_args()
     report.DRY_RUN = args.quick
     device = jax.devices()[0]
     print(f"device: {device.platform} {device.device_kind}", flush=True)
-    batch = bench_batch([16, 64] if args.quick else [256, 1024])
-    dense = bench_dense(["five"] if args.quick else ["five", "ggx"])
-    write_section("gpu", "\n".join([
-        f"## GPU: batches and dense scans ({device.device_kind})", "",
-        ("`brdfjax.fit_batch` of bench_batch's synthetic 716-point samples (the five-parameter "
-         f"model, default search), chunks of {CHUNK}; first call (compilation included) and "
-         "a second, warm call of the same samples."), "",
-        "| samples | first call (s) | warm (s) | samples per second (warm) | converged |",
-        "|---|---|---|---|---|", *batch, "",
-        "Dense scans of bench_dense (1 deg x 1.6 deg, 5 incidences, 2.5 % noise), default fit.",
-        "", "| model | points | first fit (s) | warm fit (s) | E | status |",
-        "|---|---|---|---|---|---|", *dense]))
+    if "batch" in args.only:
+        batch = bench_batch([16, 64] if args.quick else [256, 1024])
+        write_section("gpu", "\n".join([
+            f"## GPU: batches ({device.device_kind})", "",
+            ("`brdfjax.fit_batch` of bench_batch's synthetic 716-point samples (the "
+             f"five-parameter model, default search), chunks of {CHUNK}; first call "
+             "(compilation included) and a second, warm call of the same samples."), "",
+            "| samples | first call (s) | warm (s) | samples per second (warm) | converged |",
+            "|---|---|---|---|---|", *batch]))
+    if "dense" in args.only:
+        dense = bench_dense(["five"] if args.quick else ["five", "ggx"],
+                            [1_000] if args.quick else [100_000, 300_000])
+        write_section("gpu-dense", "\n".join([
+            f"## GPU: dense scans ({device.device_kind})", "",
+            ("bench_dense's synthetic out-of-plane scans (five incidences, 2.5 % noise), the "
+             "default fit (searched and screened on 4096 representative points, the winner "
+             "polished on all) and the fit on all points; first call (compilation included) "
+             "and a second, warm call."), "",
+            "| model | points | fit | first call (s) | warm (s) | E | status |",
+            "|---|---|---|---|---|---|---|", *dense]))
 
 
 if __name__ == "__main__":
