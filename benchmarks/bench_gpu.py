@@ -3,7 +3,9 @@
     python benchmarks/bench_gpu.py [--only batch dense] [--quick]
 
 Section ``gpu``: `brdfjax.fit_batch` of 256 and 1024 of bench_batch's synthetic 716-point
-samples in chunks of 1024. Section ``gpu-dense``: bench_dense's synthetic scans (five and
+samples in chunks of 1024. Section ``gpu-devices``: the same 256 samples on the GPU and on
+the same machine's CPU cores (one single-threaded JAX device per core, as `brdfjax batch`
+does), same JAX, same seeds: speed, and whether the two agree. Section ``gpu-dense``: bench_dense's synthetic scans (five and
 ggx, 101 250 and 300 600 points) fitted the default way (searched on representative points)
 and on all points (`brdfjax.fitting.DENSE_POINTS` above the point count). ``first`` is the
 first call (tracing and compilation included), ``warm`` a second call of the same size, on
@@ -57,6 +59,34 @@ def bench_batch(sizes):
     return rows
 
 
+def bench_devices(count):
+    import jax
+    import numpy as np
+
+    from brdfjax.batch import fit_batch
+
+    made, rows, fitted = samples(count), [], {}
+    for name, devices in (("GPU", jax.devices()), ("CPU", jax.devices("cpu"))):  # GPU first
+        first, _ = timed(lambda devices=devices: fit_batch(made, chunk_size=CHUNK,
+                                                           devices=devices))
+        warm, fitted[name] = timed(lambda devices=devices: fit_batch(made, chunk_size=CHUNK,
+                                                                     devices=devices))
+        converged = sum(r.status == "converged" for r in fitted[name])
+        steps = np.median([np.max(r.lm_steps) for r in fitted[name]])
+        rows.append(f"| {name} ({len(devices)} device{'s' * (len(devices) > 1)}) | "
+                    f"{first:.1f} | {warm:.2f} | {count / warm:.0f} | {converged}/{count} | "
+                    f"{steps:.0f} |")
+        print(rows[-1], flush=True)
+    gpu, cpu = (np.array([r.error for r in fitted[k]]) for k in ("GPU", "CPU"))
+    gap = np.abs(gpu - cpu) / cpu
+    status = sum(a.status != b.status for a, b in zip(fitted["GPU"], fitted["CPU"]))
+    summary = (f"GPU against CPU, sample by sample: largest relative difference in E "
+               f"{np.max(gap):.1e}, {np.sum(gap > 1e-6)} of {count} differ by more than "
+               f"1e-6, {status} differ in status.")
+    print(summary, flush=True)
+    return rows, summary
+
+
 def bench_dense(models, sizes):
     import brdfjax
     import brdfjax.fitting
@@ -81,11 +111,15 @@ def main() -> None:
     import jax
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--only", nargs="+", choices=("batch", "dense"),
-                        default=["batch", "dense"], help="sections to run")
+    parser.add_argument("--only", nargs="+", choices=("batch", "devices", "dense"),
+                        default=["batch", "devices", "dense"], help="sections to run")
     parser.add_argument("--quick", action="store_true", help="small sizes; write nothing")
     args = parser.parse_args()
     report.DRY_RUN = args.quick
+    if "devices" in args.only:
+        from brdfjax.batch import use_every_core
+
+        use_every_core()  # one CPU device per core beside the GPU, before JAX starts
     device = jax.devices()[0]
     print(f"device: {device.platform} {device.device_kind}", flush=True)
     if "batch" in args.only:
@@ -97,6 +131,17 @@ def main() -> None:
              "(compilation included) and a second, warm call of the same samples."), "",
             "| samples | first call (s) | warm (s) | samples per second (warm) | converged |",
             "|---|---|---|---|---|", *batch]))
+    if "devices" in args.only:
+        rows, summary = bench_devices(16 if args.quick else 256)
+        write_section("gpu-devices", "\n".join([
+            f"## GPU against the same machine's CPU cores ({device.device_kind})", "",
+            ("`brdfjax.fit_batch` of bench_batch's synthetic 716-point samples (the "
+             "five-parameter model, default search, same seeds) on the GPU and on the "
+             "machine's CPU cores, one single-threaded JAX device per core "
+             "(`brdfjax.batch.use_every_core`, as `brdfjax batch` does); same process, same "
+             "JAX. Steps: the median over samples of the most LM steps of a start."), "",
+            ("| devices | first call (s) | warm (s) | samples per second (warm) | converged "
+             "| LM steps |"), "|---|---|---|---|---|---|", *rows, "", summary]))
     if "dense" in args.only:
         dense = bench_dense(["five"] if args.quick else ["five", "ggx"],
                             [1_000] if args.quick else [100_000, 300_000])
