@@ -60,7 +60,7 @@ def main(argv=None) -> int:
         warnings.showwarning = keep
         try:
             code = args.run(args) or 0
-        except (DataError, ValueError, OSError) as problem:
+        except (DataError, ValueError, OSError, ImportError) as problem:  # what to install
             print(f"brdfjax {args.command}: error: {problem}", file=sys.stderr)
             return 1
         except KeyboardInterrupt:

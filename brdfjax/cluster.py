@@ -67,6 +67,15 @@ def _add_laplace(samples, results, summaries, bounds) -> None:
         summary["uncertainty_status"] = approximation.status
 
 
+def require_dask() -> None:
+    """Raise ImportError with what to install when dask.distributed is missing."""
+    try:
+        import dask.distributed  # noqa: F401
+    except ImportError as missing:
+        raise ImportError("--scheduler needs Dask on this machine too: "
+                          "pip install 'brdfjax[batch]'") from missing
+
+
 def fit_on_cluster(chunks: Iterable[list], scheduler: str,
                    options: dict) -> Iterator[tuple[int, list[dict] | BaseException]]:
     """Send every chunk to a Dask cluster; yield each chunk's results as soon as it is done.
@@ -84,10 +93,8 @@ def fit_on_cluster(chunks: Iterable[list], scheduler: str,
         ImportError: dask.distributed is not installed.
         OSError: the scheduler cannot be reached.
     """
-    try:
-        from dask.distributed import Client, as_completed
-    except ImportError as missing:
-        raise ImportError("--scheduler needs Dask: pip install 'brdfjax[batch]'") from missing
+    require_dask()
+    from dask.distributed import Client, as_completed
 
     from brdfjax.cache import enable
 

@@ -126,6 +126,35 @@ def test_inputs_expand_from_directories_and_globs_without_blanks(tmp_path):
         expand([str(tmp_path / "missing.csv")])
 
 
+def test_a_folder_yields_every_readable_format(tmp_path):
+    """Every suffix `load` reads is taken from a folder (.astm files were once left out)."""
+    for suffix in (".csv", ".astm"):
+        save(synthetic(0), tmp_path / f"sample{suffix}")
+    for real in (RAW / "NiTE_on_steel_v1o0A_20250915.xls",
+                 RAW.parent / "processed_by_authors" / "AnoBlackEC1onAlum.bsdf"):
+        (tmp_path / f"sample{real.suffix}").write_bytes(real.read_bytes())
+    (tmp_path / "notes.txt").write_text("not a measurement\n")
+    assert [Path(f).name for f in expand([str(tmp_path)])] == [
+        "sample.astm", "sample.bsdf", "sample.csv", "sample.xls"]
+
+
+def test_scheduler_without_dask_is_one_clear_error_before_any_work(tmp_path, monkeypatch,
+                                                                   capsys):
+    """``--scheduler`` on a machine without dask.distributed: exit 1, one line saying what
+    to install, no traceback and no results file."""
+    from brdfjax.cli import main
+
+    monkeypatch.setitem(sys.modules, "dask.distributed", None)  # its import now fails
+    save(synthetic(0), tmp_path / "sample.csv")
+    out = tmp_path / "results.csv"
+    assert main(["batch", str(tmp_path / "sample.csv"), "--out", str(out),
+                 "--scheduler", "tcp://127.0.0.1:8786"]) == 1
+    said = capsys.readouterr().err.strip().splitlines()
+    assert said == [("brdfjax batch: error: --scheduler needs Dask on this machine too: "
+                    "pip install 'brdfjax[batch]'")]
+    assert not out.exists()
+
+
 @pytest.fixture(scope="module")
 def catalogue(tmp_path_factory):
     """A folder of synthetic CSV files and one unreadable (NaN) file."""

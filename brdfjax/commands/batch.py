@@ -19,8 +19,8 @@ import sys
 from pathlib import Path
 
 from brdfjax.commands import add_reader_options, check_writable, reader_options
+from brdfjax.formats import READABLE
 
-SUFFIXES = (".csv", ".xls", ".bsdf")
 AUTO_SAMPLES = 8  # --model auto chooses on at most this many samples
 SEARCH_OPTIONS = {"population_size": "genetic-search population",
                   "max_generations": "genetic-search generations",
@@ -88,7 +88,7 @@ def expand(inputs, outputs=()) -> list[str]:
         else:
             raise ValueError(f"{item}: no such file, directory or matching pattern")
         if not found:
-            raise ValueError(f"{item}: no {'/'.join(SUFFIXES)} files there")
+            raise ValueError(f"{item}: no {'/'.join(READABLE)} files there")
         files += [os.path.normpath(p) for p in found]
     return list(dict.fromkeys(files))
 
@@ -96,7 +96,7 @@ def expand(inputs, outputs=()) -> list[str]:
 def _is_sample(path: Path, outputs=()) -> bool:
     """A measurement file, not an RT-300S blank (which is subtracted, not fitted), and none
     of the batch's outputs."""
-    return (path.is_file() and path.suffix.lower() in SUFFIXES
+    return (path.is_file() and path.suffix.lower() in READABLE
             and not (path.suffix.lower() == ".xls" and path.name.startswith("blank_"))
             and not path.name.startswith(".") and not _is_output(path, outputs)
             and not _is_results(path))
@@ -198,6 +198,10 @@ def run_batch(args) -> int:
         raise ValueError(f"--chunk-size {args.chunk_size}: give at least 1")
     if args.model != "auto":
         get(args.model)  # an unknown name fails before any file is read
+    if args.scheduler is not None:
+        from brdfjax.cluster import require_dask
+
+        require_dask()  # before any file is read
     spectral = spectral_request(args.wavelength)
     files = expand(args.inputs, outputs=(args.out, args.json))
     if spectral is not None:
@@ -206,6 +210,8 @@ def run_batch(args) -> int:
     elif args.plot:
         raise ValueError("--plot draws parameters against wavelength: give --wavelength all "
                          "or a list of wavelengths")
+    # One device per core must be made before any fit (--model auto's) starts JAX.
+    devices = _local_devices() if args.scheduler is None else None
     model = get(choose_model(files, args) if args.model == "auto" else args.model)
     columns = columns_of(model.names, bool(args.uncertainty), spectral is not None)
     names = [json_name(f) for f in files]
@@ -225,8 +231,7 @@ def run_batch(args) -> int:
               file=sys.stderr)
     if not pending:
         return _summary(rows, files, [])
-    if args.scheduler is None:  # said before the bar opens, so it is not drawn through it
-        devices = _local_devices()
+    if devices:  # said before the bar opens, so it is not drawn through it
         print(f"fitting on {len(devices)} {devices[0].platform} device(s)", file=sys.stderr)
 
     progress = tqdm(total=len(pending), unit="file", desc="brdfjax batch", file=sys.stderr)

@@ -26,6 +26,8 @@ from brdfjax.measurements import DataError, Measurements
 # How much of a text file is looked at to tell its format.
 SNIFF_CHARACTERS = 65536
 WRITERS = {".csv": "csv", ".bsdf": "zemax", ".astm": "astm"}
+# The suffixes `load` reads (a folder given to ``brdfjax batch`` yields these files).
+READABLE = (".csv", ".astm", ".xls", ".bsdf")
 
 
 def load(path, **options) -> Measurements:
