@@ -351,7 +351,8 @@ class UncertaintyResult:
                          f"{self.std[k]:11.4g}   {_interval(self.ci68[k]):<27} "
                          f"{_interval(self.ci95[k])}")
         if outside:
-            lines.append(f"  * the fit's {', '.join(outside)} lies outside its 95 % interval: "
+            verb = "lies outside its" if len(outside) == 1 else "lie outside their"
+            lines.append(f"  * the fit's {', '.join(outside)} {verb} 95 % interval: "
                          "the interval is about the posterior, which weights points by their "
                          "noise, not about the Eq. (6) optimum")
         size = len(names)

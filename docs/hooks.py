@@ -3,6 +3,9 @@
 - ``api.md``: one section per name in ``brdfjax.__all__`` (mkdocstrings renders each
   docstring from the module that defines it, found through ``brdfjax._EXPORTS``).
 - ``cli.md``: the ``--help`` of every command and sub-command of ``brdfjax``.
+- ``models.md``: every model of `brdfjax.models`: its module's docstring (the formula, and
+  what the code does where the formula breaks down) and its parameters' default ranges
+  (a ``|`` in a reason is escaped, so it stays inside its table cell).
 - The notebooks in ``notebooks/`` and the figure of ``BENCHMARKS.md`` are added as pages and
   files from where they live, so nothing is copied into ``docs/``.
 """
@@ -34,6 +37,8 @@ def on_page_markdown(markdown, page, config, files):
         return markdown.replace("<!-- brdfjax-api -->", api_markdown())
     if "<!-- brdfjax-cli -->" in markdown:
         return markdown.replace("<!-- brdfjax-cli -->", cli_markdown())
+    if "<!-- brdfjax-models -->" in markdown:
+        return markdown.replace("<!-- brdfjax-models -->", models_markdown())
     return markdown
 
 
@@ -45,6 +50,26 @@ def api_markdown() -> str:
         module = brdfjax._EXPORTS[name]
         sections.append(f"## `brdfjax.{name}`\n\n*Defined in `{module}`.*\n\n"
                         f"::: {module}.{name}\n")
+    return "\n".join(sections)
+
+
+def models_markdown() -> str:
+    import inspect
+
+    from brdfjax.models import available, get
+
+    sections = []
+    for name in available():
+        model = get(name)
+        module = inspect.getmodule(type(model))
+        rows = [f"| `{p.name}` | {p.low:g} | {p.high:g} | {p.scale} | "
+                f"{p.reason.replace('|', chr(92) + '|')} |" for p in model.parameters]
+        sections.append("\n".join([
+            f"## `{name}`", "", (f"When to use it: {model.summary}. *Defined in "
+            f"`{module.__name__}`.*"), "",
+            inspect.cleandoc(module.__doc__), "",  # Markdown: formulas are indented blocks
+            "| parameter | low | high | searched on | why this range |", "|---|---|---|---|---|",
+            *rows, ""]))
     return "\n".join(sections)
 
 

@@ -1,5 +1,7 @@
 """The documentation site builds in strict mode and documents every public name."""
 
+import html
+import inspect
 import os
 import subprocess
 import sys
@@ -10,6 +12,7 @@ from conftest import REPO
 
 import brdfjax
 from brdfjax.cli import build_parser
+from brdfjax.models import available, get
 
 
 def test_every_public_name_has_a_docstring():
@@ -44,6 +47,12 @@ def test_the_site_builds_strictly_with_every_name_command_and_notebook(tmp_path)
     assert "usage: brdfjax instrument simulate" in cli
     assert "brdfjax fit data/synthetic/white_paint.csv" in (site / "index.html").read_text()
     assert "Where the formulas break" in (site / "model" / "index.html").read_text()
+    models = (site / "models" / "index.html").read_text()
+    for name in available():  # each model's section, formula (its docstring) and box
+        model = get(name)
+        assert f"<code>{name}</code>" in models and model.parameters[-1].reason in models
+        assert html.escape(inspect.getdoc(inspect.getmodule(type(model))).splitlines()[0],
+                           quote=False) in models
     assert (site / "benchmarks" / "compare.png").is_file()
     for notebook in (REPO / "notebooks").glob("*.ipynb"):
         assert (site / "notebooks" / notebook.stem / "index.html").is_file(), notebook.name
