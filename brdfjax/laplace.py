@@ -284,8 +284,9 @@ def _flags(unit, names, condition: float, condition_limit: float, cut: set) -> l
     messages = []
     at_bounds = [name for name, edge in zip(names, _at_edge(unit, 0, 1)) if edge]
     if at_bounds:
-        messages.append(f"{', '.join(at_bounds)} at a bound of the search box: the posterior "
-                        "is cut there and is not Gaussian" + advice)
+        messages.append(f"the posterior's mode puts {', '.join(at_bounds)} at a bound of the "
+                        "search box (whatever the fit's value): the posterior is cut there "
+                        "and is not Gaussian" + advice)
     if not np.isfinite(condition):
         messages.append("the curvature (Fisher information) is singular: some parameter "
                         "combination is not determined by the data" + advice)

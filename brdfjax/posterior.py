@@ -317,12 +317,12 @@ class UncertaintyResult:
             "timings": self.timings,
         }
 
-    def table(self, fitted=None) -> str:
+    def table(self, fitted=None, loss: str = "eq6") -> str:
         """A readable table of the intervals, the strongest correlations and any warnings.
 
-        With the ``fitted`` parameters (the Eq. 6 optimum), a ``fit`` column stands beside
-        the posterior ``median``, and a fitted value outside its own 95 % interval is
-        marked and explained on the spot.
+        With the ``fitted`` parameters (the optimum of the fit's ``loss``: Eq. 6 by
+        default), a ``fit`` column stands beside the posterior ``median``, and a fitted value
+        outside its own 95 % interval is marked and explained on the spot.
         """
         noise = self.noise["model"]
         for name in NOISE_NAMES:
@@ -333,17 +333,21 @@ class UncertaintyResult:
                            f"[{interval[0]:.3g}, {interval[1]:.3g}]"))
         names = self.model.names
         width = max(3, *map(len, names))
-        fit_header = "" if fitted is None else f" {'fit (Eq. 6)':>12}"
+        label, optimum = (("Eq. 6", "the Eq. (6) optimum") if loss == "eq6" else
+                          (loss, f"the optimum of the {loss} loss"))
+        fit_width = max(12, len(f"fit ({label})"))
+        fit_header = "" if fitted is None else f" {f'fit ({label})':>{fit_width}}"
         lines = [f"uncertainty ({self.method}, {self.status}); noise: {noise}",
                  "  (median: the posterior's, whose likelihood weights points by 1/variance; "
-                 + "fit: the Eq. (6) optimum, which weights them alike)",
+                 + f"fit: {optimum}"
+                 + (", which weights them alike)" if loss == "eq6" else ")"),
                  (f"  {'':>{width}}{fit_header} {'median':>12} {'std':>11}   "
                  f"{'68 % interval':<27} 95 % interval")]
         outside = []
         for k, name in enumerate(names):
             fit_cell = ""
             if fitted is not None:
-                fit_cell = f" {fitted[k]:12.6g}"
+                fit_cell = f" {fitted[k]:{fit_width}.6g}"
                 if not self.ci95[k][0] <= fitted[k] <= self.ci95[k][1]:
                     fit_cell += "*"
                     outside.append(name)
@@ -354,7 +358,7 @@ class UncertaintyResult:
             verb = "lies outside its" if len(outside) == 1 else "lie outside their"
             lines.append(f"  * the fit's {', '.join(outside)} {verb} 95 % interval: "
                          "the interval is about the posterior, which weights points by their "
-                         "noise, not about the Eq. (6) optimum")
+                         f"noise, not about {optimum}")
         size = len(names)
         pairs = sorted(((abs(self.correlation[i, j]), i, j) for i in range(size)
                         for j in range(i + 1, size)), reverse=True)[:3]

@@ -253,10 +253,25 @@ def test_laplace_flags_a_parameter_at_its_bound(white_paint):
                                               bounds=bounds, validate_incidences_deg=HELD_OUT)
     assert approximation.status == "untrustworthy"
     assert approximation.warnings == [str(w.message) for w in caught]
-    assert approximation.warnings[0].startswith("kd at a bound")
+    assert approximation.warnings[0].startswith("the posterior's mode puts kd at a bound")
     assert "mcmc" in approximation.warnings[0]
     # The misfit is large enough that the data's sigma no longer describe the scatter.
     assert "chi-square per degree of freedom" in approximation.warnings[1]
+
+
+def test_table_names_the_loss_the_fit_minimised(white_fit, white_laplace):
+    """The fit column says which optimum it holds, and stays aligned however long that is."""
+    eq6 = white_laplace.table(fitted=white_fit.vector)
+    balanced = white_laplace.table(fitted=white_fit.vector, loss="balanced")
+    assert "fit (Eq. 6)" in eq6 and "Eq. (6) optimum" in eq6 and "balanced" not in eq6
+    assert "fit (balanced)" in balanced and "optimum of the balanced loss" in balanced
+    assert "Eq. 6" not in balanced and "Eq. (6)" not in balanced
+    lines = balanced.splitlines()
+    header = next(line for line in lines if "fit (balanced)" in line)
+    end = header.index("fit (balanced)") + len("fit (balanced)")
+    for name, value in zip(white_fit.model.names, white_fit.vector):
+        row = next(line for line in lines if line.split()[:1] == [name])
+        assert row[:end].split()[-1] == f"{value:.6g}" and row[end] in " *", row
 
 
 def test_laplace_flags_unidentified_parameters():

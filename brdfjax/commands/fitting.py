@@ -164,7 +164,7 @@ def run_fit(args) -> None:
     calibration = validate_and_predict(result, data, args) if args.cv or args.predict else None
     uncertainty = estimate_uncertainty(result, data, args)
     if uncertainty is not None:
-        print(uncertainty.table(fitted=result.vector))
+        print(uncertainty.table(fitted=result.vector, loss=result.loss))
     write_outputs(result, data, args, uncertainty, calibration)
 
 
@@ -357,7 +357,8 @@ def summary(result, name: str) -> str:
 
     names = result.model.names
     width = max(3, *map(len, names))
-    lines = [f"{name}: {result.method} fit of the {result.model.name} model, status "
+    loss = "" if result.loss == "eq6" else f" minimising the {result.loss} loss"
+    lines = [f"{name}: {result.method} fit of the {result.model.name} model{loss}, status "
              + result.status]
     lines += [f"  {k:>{width}} = {v:14.6g}" + ("   (at a bound)" if k in result.at_bounds
                                                else "") for k, v in zip(names, result.params)]
