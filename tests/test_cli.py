@@ -74,6 +74,7 @@ def test_fit_writes_json_and_plots(tmp_path, capsys):
                  "--plot-3d", str(tmp_path / "3d.png"), "--incidences-3d", "30"]) == 0
     table = capsys.readouterr().out
     assert "status converged" in table and "held out: E =" in table
+    assert f"wrote {out}, {tmp_path / 'fit.png'}, {tmp_path / '3d.png'}" in table
     result = json.loads(out.read_text())
     assert set(result["params"]) == {"kb", "kr", "a", "b", "kd"}
     assert 0 < result["error"] < 0.01  # a fraction, not a percent

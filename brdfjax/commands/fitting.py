@@ -329,6 +329,9 @@ def write_outputs(result, data, args, uncertainty=None, calibration=None) -> Non
 
         replace_atomically(args.plot_corner, lambda path: plot_corner(
             uncertainty, path, title=f"{data.name}: {uncertainty.method} posterior"))
+    written = [path for path in (args.json, args.plot, args.plot_3d, args.plot_corner) if path]
+    if written:
+        print(f"wrote {', '.join(written)}")
 
 
 def incidence_lines(errors: dict, result) -> list[str]:
