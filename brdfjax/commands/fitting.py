@@ -23,8 +23,8 @@ REFLECTANCE_INCIDENCES = tuple(range(0, 90, 10))
 SUMMARY_INCIDENCES = (0.0, 30.0, 60.0)
 # An incidence whose E exceeds the overall E by more than this factor gets a warning.
 INCIDENCE_WARNING = 3.0
-FILE_HELP = ("the measurement file: brdfjax .csv, NIST PTFE .csv, J&C RT-300S .xls or "
-             "Zemax .bsdf")
+FILE_HELP = ("the measurement file: brdfjax .csv, NIST PTFE .csv, ASTM E1392 .astm, J&C "
+             "RT-300S .xls or Zemax .bsdf")
 SEED_HELP = ("seeds the genetic search, the random starts and the uncertainty's draws: the "
              "same seed gives the same result (default 0)")
 
