@@ -1,23 +1,22 @@
 """GPU timings, on a lent GPU machine (never required): batches and dense scans.
 
-    python benchmarks/bench_gpu.py [--only batch dense] [--quick]
+    python benchmarks/bench_gpu.py [--only batch dense | --only devices] [--quick]
 
 Section ``gpu``: `brdfjax.fit_batch` of 256 and 1024 of bench_batch's synthetic 716-point
 samples in chunks of 1024. Section ``gpu-devices``: the same 256 samples on the GPU and on
 the same machine's CPU cores (one single-threaded JAX device per core, as `brdfjax batch`
-does), same JAX, same seeds: speed, and whether the two agree. Section ``gpu-dense``: bench_dense's synthetic scans (five and
-ggx, 101 250 and 300 600 points) fitted the default way (searched on representative points)
-and on all points (`brdfjax.fitting.DENSE_POINTS` above the point count). ``first`` is the
-first call (tracing and compilation included), ``warm`` a second call of the same size, on
-the machine's default JAX device. The CPU rows of the batch and dense sections were
-measured on another machine (2 cores): compare throughput, not the machines. On the GPU the
-model evaluation and the linear solves run on the device; JAX's CPU-only tricks (several
-CPU devices) do not apply.
+does), same JAX, same seeds: speed, and whether the two agree. Section ``gpu-dense``:
+bench_dense's synthetic scans (five and ggx, 101 250 and 300 600 points) fitted the default
+way (searched on representative points) and on all points (`brdfjax.fitting.DENSE_POINTS`
+above the point count). ``first`` is the first call (tracing and compilation included),
+``warm`` a second call of the same size, on the machine's default JAX device. The CPU rows
+of the batch and dense sections were measured on another machine (2 cores): compare
+throughput, not the machines; section gpu-devices compares on one machine.
 
-Measured on an H100 (2026-11-26): 14 samples per second warm, slower than the 2-core CPU
-(46-62 per second): the fits are many small sequential steps (the GA's generations, each LM
-step of each start), so kernel launches, not arithmetic, set the time. 10 000 samples
-would take about 12 minutes there, more than a device call allows, and are not run.
+Measured on an H100 (2026-11-26): 14 samples per second warm, against 186 on the same
+machine's 16 CPU cores: the fits are many small sequential steps (the GA's generations,
+each LM step of each start), so kernel launches, not arithmetic, set the time. 10 000
+samples would take about 12 minutes there, more than a device call allows, and are not run.
 """
 
 from __future__ import annotations
@@ -92,18 +91,22 @@ def bench_dense(models, sizes):
     import brdfjax.fitting
 
     rows, default = [], brdfjax.fitting.DENSE_POINTS
-    for model in models:
-        for points in sizes:
-            data = scan(model, *SIZES[points])
-            for mode, threshold in (("representative", default), ("all points", len(data))):
-                brdfjax.fitting.DENSE_POINTS = threshold
-                first, _ = timed(lambda data=data, model=model: brdfjax.fit(data, model=model))
-                warm, result = timed(lambda data=data, model=model: brdfjax.fit(data,
+    try:
+        for model in models:
+            for points in sizes:
+                data = scan(model, *SIZES[points])
+                for mode, threshold in (("representative", default),
+                                        ("all points", len(data))):
+                    brdfjax.fitting.DENSE_POINTS = threshold
+                    first, _ = timed(lambda data=data, model=model: brdfjax.fit(data,
                                                                                 model=model))
-                rows.append(f"| {model} | {len(data)} | {mode} | {first:.1f} | {warm:.2f} | "
-                            f"{result.error:.10g} | {result.status} |")
-                print(rows[-1], flush=True)
-    brdfjax.fitting.DENSE_POINTS = default
+                    warm, result = timed(lambda data=data, model=model: brdfjax.fit(
+                        data, model=model))
+                    rows.append(f"| {model} | {len(data)} | {mode} | {first:.1f} | "
+                                f"{warm:.2f} | {result.error:.10g} | {result.status} |")
+                    print(rows[-1], flush=True)
+    finally:
+        brdfjax.fitting.DENSE_POINTS = default
     return rows
 
 
@@ -112,9 +115,12 @@ def main() -> None:
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", nargs="+", choices=("batch", "devices", "dense"),
-                        default=["batch", "devices", "dense"], help="sections to run")
+                        default=["batch", "dense"], help="sections to run (devices alone)")
     parser.add_argument("--quick", action="store_true", help="small sizes; write nothing")
     args = parser.parse_args()
+    if "devices" in args.only and len(args.only) > 1:
+        parser.error("run --only devices on its own: it makes one CPU device per core, "
+                     "single-threaded, before JAX starts, which would change the others")
     report.DRY_RUN = args.quick
     if "devices" in args.only:
         from brdfjax.batch import use_every_core
@@ -139,7 +145,9 @@ def main() -> None:
              "five-parameter model, default search, same seeds) on the GPU and on the "
              "machine's CPU cores, one single-threaded JAX device per core "
              "(`brdfjax.batch.use_every_core`, as `brdfjax batch` does); same process, same "
-             "JAX. Steps: the median over samples of the most LM steps of a start."), "",
+             "JAX. Steps: the median over samples of the most LM steps of a start. A "
+             "sample whose status differs between the devices but whose E does not differs "
+             "in LM's convergence test at its 1e-10 tolerance, not in the fit."), "",
             ("| devices | first call (s) | warm (s) | samples per second (warm) | converged "
              "| LM steps |"), "|---|---|---|---|---|---|", *rows, "", summary]))
     if "dense" in args.only:
@@ -150,7 +158,9 @@ def main() -> None:
             ("bench_dense's synthetic out-of-plane scans (five incidences, 2.5 % noise), the "
              "default fit (searched and screened on 4096 representative points, the winner "
              "polished on all) and the fit on all points; first call (compilation included) "
-             "and a second, warm call."), "",
+             "and a second, warm call. The CPU's numbers for the same scans are in sections "
+             "dense and dense-scaling (2 cores), where the representative points are what "
+             "makes a dense scan fast."), "",
             "| model | points | fit | first call (s) | warm (s) | E | status |",
             "|---|---|---|---|---|---|---|", *dense]))
 

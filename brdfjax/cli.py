@@ -46,6 +46,7 @@ SILENT_WARNINGS = (DeprecationWarning, PendingDeprecationWarning, ImportWarning,
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     from brdfjax.measurements import DataError
+    from brdfjax.optional import MissingDependency
 
     caught = {}
 
@@ -60,7 +61,7 @@ def main(argv=None) -> int:
         warnings.showwarning = keep
         try:
             code = args.run(args) or 0
-        except (DataError, ValueError, OSError, ImportError) as problem:  # what to install
+        except (DataError, ValueError, OSError, MissingDependency) as problem:
             print(f"brdfjax {args.command}: error: {problem}", file=sys.stderr)
             return 1
         except KeyboardInterrupt:

@@ -22,6 +22,8 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
 
+from brdfjax.optional import require
+
 
 def fit_chunk(samples: list, options: dict) -> list[dict]:
     """Fit one chunk of samples wherever this runs, returning JSON-ready results.
@@ -68,12 +70,9 @@ def _add_laplace(samples, results, summaries, bounds) -> None:
 
 
 def require_dask() -> None:
-    """Raise ImportError with what to install when dask.distributed is missing."""
-    try:
-        import dask.distributed  # noqa: F401
-    except ImportError as missing:
-        raise ImportError("--scheduler needs Dask on this machine too: "
-                          "pip install 'brdfjax[batch]'") from missing
+    """Raise `brdfjax.optional.MissingDependency` when dask.distributed is missing (the
+    machine running ``brdfjax batch`` needs it as well as the workers)."""
+    require("dask.distributed", "batch", "--scheduler")
 
 
 def fit_on_cluster(chunks: Iterable[list], scheduler: str,
@@ -90,7 +89,7 @@ def fit_on_cluster(chunks: Iterable[list], scheduler: str,
         instead when the chunk failed on the cluster (a worker died, ...).
 
     Raises:
-        ImportError: dask.distributed is not installed.
+        brdfjax.optional.MissingDependency: dask.distributed is not installed.
         OSError: the scheduler cannot be reached.
     """
     require_dask()

@@ -49,6 +49,7 @@ from brdfjax.measurements import Measurements
 from brdfjax.model import FIVE, evaluate_projected
 from brdfjax.models import Model, get
 from brdfjax.objective import prepare, projected
+from brdfjax.optional import require
 
 # Log-uniform prior ranges of the noise model's scales: relative 0.01 % to 100 %; absolute
 # 1e-8 to 1 times the largest measured projected BRDF.
@@ -337,10 +338,11 @@ class UncertaintyResult:
                           (loss, f"the optimum of the {loss} loss"))
         fit_width = max(12, len(f"fit ({label})"))
         fit_header = "" if fitted is None else f" {f'fit ({label})':>{fit_width}}"
+        fit_note = ("" if fitted is None else f"; fit: {optimum}"
+                    + (", which weights them alike" if loss == "eq6" else ""))
         lines = [f"uncertainty ({self.method}, {self.status}); noise: {noise}",
-                 "  (median: the posterior's, whose likelihood weights points by 1/variance; "
-                 + f"fit: {optimum}"
-                 + (", which weights them alike)" if loss == "eq6" else ")"),
+                 "  (median: the posterior's, whose likelihood weights points by 1/variance"
+                 + fit_note + ")",
                  (f"  {'':>{width}}{fit_header} {'median':>12} {'std':>11}   "
                  f"{'68 % interval':<27} 95 % interval")]
         outside = []
@@ -523,6 +525,11 @@ def autocorrelation_time(chain) -> np.ndarray:
     return integrated_time(np.asarray(chain), tol=0)
 
 
+def require_emcee():
+    """emcee, or `brdfjax.optional.MissingDependency` saying how to install it."""
+    return require("emcee", "mcmc", "MCMC sampling (--uncertainty mcmc)")
+
+
 def sample_posterior(data: Measurements, fit, *, walkers: int = 32, max_steps: int = 20000,
                      check_every: int = 250, stop_when_converged: bool = True, seed: int = 0,
                      chain_path=None, progress: bool = True,
@@ -556,9 +563,9 @@ def sample_posterior(data: Measurements, fit, *, walkers: int = 32, max_steps: i
     Returns:
         An `UncertaintyResult` with method ``mcmc``.
     """
-    import emcee
     from tqdm import tqdm
 
+    emcee = require_emcee()
     post, _ = training_setup(data, fit, bounds, model, validate_incidences_deg)
     if walkers < 2 * post.ndim:
         raise ValueError(f"emcee needs at least {2 * post.ndim} walkers for {post.ndim} "

@@ -65,7 +65,7 @@ def models_markdown() -> str:
         rows = [f"| `{p.name}` | {p.low:g} | {p.high:g} | {p.scale} | "
                 f"{p.reason.replace('|', chr(92) + '|')} |" for p in model.parameters]
         sections.append("\n".join([
-            f"## `{name}`", "", (f"When to use it: {model.summary}. *Defined in "
+            f"## `{name}`", "", (f"{model.summary[0].upper()}{model.summary[1:]}. *Defined in "
             f"`{module.__name__}`.*"), "",
             inspect.cleandoc(module.__doc__), "",  # Markdown: formulas are indented blocks
             "| parameter | low | high | searched on | why this range |", "|---|---|---|---|---|",

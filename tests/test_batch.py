@@ -141,18 +141,43 @@ def test_a_folder_yields_every_readable_format(tmp_path):
 def test_scheduler_without_dask_is_one_clear_error_before_any_work(tmp_path, monkeypatch,
                                                                    capsys):
     """``--scheduler`` on a machine without dask.distributed: exit 1, one line saying what
-    to install, no traceback and no results file."""
+    to install, before any input is looked at; no traceback and no results file."""
+    import brdfjax.commands.batch as command
     from brdfjax.cli import main
 
     monkeypatch.setitem(sys.modules, "dask.distributed", None)  # its import now fails
-    save(synthetic(0), tmp_path / "sample.csv")
+
+    def too_late(*args, **kwargs):
+        raise AssertionError("inputs were read before Dask was checked")
+
+    monkeypatch.setattr(command, "expand", too_late)
     out = tmp_path / "results.csv"
-    assert main(["batch", str(tmp_path / "sample.csv"), "--out", str(out),
+    assert main(["batch", str(tmp_path), "--out", str(out),
                  "--scheduler", "tcp://127.0.0.1:8786"]) == 1
     said = capsys.readouterr().err.strip().splitlines()
-    assert said == [("brdfjax batch: error: --scheduler needs Dask on this machine too: "
-                    "pip install 'brdfjax[batch]'")]
+    assert said == [("brdfjax batch: error: --scheduler needs dask, which is not installed "
+                     "here: pip install 'brdfjax[batch]'")]
     assert not out.exists()
+
+
+def test_model_auto_makes_the_devices_before_choosing(tmp_path, monkeypatch):
+    """One device per core must exist before ``--model auto`` runs its first fit: a JAX
+    already started keeps its devices (`brdfjax.batch.use_every_core`)."""
+    import brdfjax.commands.batch as command
+    from brdfjax.cli import main
+
+    calls = []
+
+    def choose(*args):
+        calls.append("choose")
+        raise ValueError("stop here")
+
+    monkeypatch.setattr(command, "_local_devices", lambda: calls.append("devices") or [])
+    monkeypatch.setattr(command, "choose_model", choose)
+    save(synthetic(0), tmp_path / "sample.csv")
+    assert main(["batch", str(tmp_path), "--model", "auto",
+                 "--out", str(tmp_path / "results.csv")]) == 1
+    assert calls == ["devices", "choose"]
 
 
 @pytest.fixture(scope="module")

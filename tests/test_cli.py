@@ -158,6 +158,36 @@ def test_an_extreme_value_is_refused_before_the_fit_with_no_raw_warning(tmp_path
     assert "Warning" not in captured.err
 
 
+def test_mcmc_without_emcee_is_one_clear_error_before_the_fit(tmp_path, capsys, monkeypatch):
+    import sys
+
+    import brdfjax.fitting
+
+    monkeypatch.setitem(sys.modules, "emcee", None)  # its import now fails
+
+    def fit(*args, **kwargs):
+        raise AssertionError("fitted before emcee was checked")
+
+    monkeypatch.setattr(brdfjax.fitting, "fit", fit)
+    assert main(["fit", str(DATA / "synthetic" / "white_paint.csv"),
+                 "--uncertainty", "mcmc"]) == 1
+    assert capsys.readouterr().err.strip().splitlines() == [
+        ("brdfjax fit: error: MCMC sampling (--uncertainty mcmc) needs emcee, which is not "
+        "installed here: pip install 'brdfjax[mcmc]'")]
+
+
+def test_an_import_error_that_is_a_bug_keeps_its_traceback(monkeypatch):
+    """Only a missing optional package (MissingDependency) is a one-line user error."""
+    import brdfjax.commands.data as command
+
+    def broken(args):
+        from brdfjax.fitting import no_such_name  # noqa: F401
+
+    monkeypatch.setattr(command, "run_info", broken)
+    with pytest.raises(ImportError, match="no_such_name"):
+        main(["info", str(DATA / "synthetic" / "white_paint.csv")])
+
+
 def test_a_failed_fit_exits_1_with_the_reason(tmp_path, capsys, monkeypatch):
     """A fit whose status is failed (no finite E anywhere) exits 1; its JSON says why."""
     import dataclasses
@@ -176,6 +206,7 @@ def test_a_failed_fit_exits_1_with_the_reason(tmp_path, capsys, monkeypatch):
     assert code == 1
     captured = capsys.readouterr()
     assert "status failed" in captured.out and "the fit failed" in captured.err
+    assert f"(the result, status failed, is in {out})" in captured.err
     record = json.loads(out.read_text(), parse_constant=strict_json)
     assert record["status"] == "failed" and "no Levenberg-Marquardt start" in record["message"]
     assert record["error"] is None  # NaN is not JSON: written as null

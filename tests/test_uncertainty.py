@@ -443,6 +443,18 @@ def test_cli_json_schema_and_plots(fit_once, tmp_path, capsys):
     assert (tmp_path / "corner.png").stat().st_size > 0
 
 
+def test_cli_says_which_loss_the_fit_minimised(monkeypatch, white_fit, capsys):
+    """The fit's header and the table's fit column name a loss other than Eq. (6)."""
+    import dataclasses
+
+    balanced = dataclasses.replace(white_fit, loss="balanced")
+    monkeypatch.setattr(brdfjax.fitting, "fit", lambda *args, **kwargs: balanced)
+    assert main(["fit", str(DATA / "synthetic" / "white_paint.csv"), "--validate-incidence",
+                 "21,52", "--loss", "balanced"]) == 0
+    out = capsys.readouterr().out
+    assert "model minimising the balanced loss, status" in out and "fit (balanced)" in out
+
+
 def test_cli_mcmc_reports_an_unconverged_chain(fit_once, tmp_path, capsys):
     out = tmp_path / "fit.json"
     assert main(["fit", str(DATA / "synthetic" / "white_paint.csv"), "--validate-incidence",

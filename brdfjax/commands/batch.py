@@ -37,8 +37,8 @@ def register(subparsers) -> None:
                     "fit per chunk of files, and write one CSV row per file. Rerun the "
                     "same command to resume an interrupted batch.")
     p.add_argument("inputs", nargs="+", metavar="INPUT",
-                   help="files, directories (every .csv/.xls/.bsdf inside except RT-300S "
-                        "blank_*.xls) or glob patterns such as 'runs/*.xls'")
+                   help=f"files, directories (every {'/'.join(READABLE)} inside except "
+                        "RT-300S blank_*.xls) or glob patterns such as 'runs/*.xls'")
     p.add_argument("--out", required=True, metavar="CSV",
                    help="results file; files already in it are not refitted")
     p.add_argument("--json", metavar="DIR", help="also write each result as DIR/NAME.json")

@@ -144,6 +144,10 @@ def run_fit(args) -> None:
         raise ValueError("--plot-corner needs --uncertainty laplace or mcmc")
     if bool(args.predict) != bool(args.predict_out):
         raise ValueError("--predict GEOMETRY and --predict-out PRED.csv go together")
+    if args.uncertainty == "mcmc":
+        from brdfjax.posterior import require_emcee
+
+        require_emcee()  # before the fit, not after it
     check_writable({"--json": args.json, "--plot": args.plot, "--plot-3d": args.plot_3d,
                     "--plot-corner": args.plot_corner, "--predict-out": args.predict_out,
                     "--chain": args.chain if args.uncertainty == "mcmc" else None})
@@ -160,7 +164,8 @@ def run_fit(args) -> None:
             from brdfjax.formats import json_text, write_atomically
 
             write_atomically(args.json, json_text(result.to_dict()))
-        raise ValueError(f"{args.file}: the fit failed: {result.message}")
+        written = f" (the result, status failed, is in {args.json})" if args.json else ""
+        raise ValueError(f"{args.file}: the fit failed: {result.message}{written}")
     calibration = validate_and_predict(result, data, args) if args.cv or args.predict else None
     uncertainty = estimate_uncertainty(result, data, args)
     if uncertainty is not None:
