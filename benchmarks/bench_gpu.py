@@ -38,9 +38,13 @@ CHUNK = 1024
 
 
 def timed(call):
+    """(seconds of the first call, compilation included; of a second, warm call; its result)"""
+    tic = time.perf_counter()
+    call()
+    first = time.perf_counter() - tic
     tic = time.perf_counter()
     result = call()
-    return time.perf_counter() - tic, result
+    return first, time.perf_counter() - tic, result
 
 
 def bench_batch(sizes):
@@ -49,8 +53,7 @@ def bench_batch(sizes):
     rows, made = [], samples(max(sizes))
     for size in sizes:
         batch = made[:size]
-        first, _ = timed(lambda batch=batch: fit_batch(batch, chunk_size=CHUNK))
-        warm, results = timed(lambda batch=batch: fit_batch(batch, chunk_size=CHUNK))
+        first, warm, results = timed(lambda batch=batch: fit_batch(batch, chunk_size=CHUNK))
         converged = sum(r.status == "converged" for r in results)
         rows.append(f"| {size} | {first:.1f} | {warm:.2f} | {size / warm:.0f} | "
                     f"{converged}/{size} |")
@@ -66,10 +69,8 @@ def bench_devices(count):
 
     made, rows, fitted = samples(count), [], {}
     for name, devices in (("GPU", jax.devices()), ("CPU", jax.devices("cpu"))):  # GPU first
-        first, _ = timed(lambda devices=devices: fit_batch(made, chunk_size=CHUNK,
-                                                           devices=devices))
-        warm, fitted[name] = timed(lambda devices=devices: fit_batch(made, chunk_size=CHUNK,
-                                                                     devices=devices))
+        first, warm, fitted[name] = timed(lambda devices=devices: fit_batch(
+            made, chunk_size=CHUNK, devices=devices))
         converged = sum(r.status == "converged" for r in fitted[name])
         steps = np.median([np.max(r.lm_steps) for r in fitted[name]])
         rows.append(f"| {name} ({len(devices)} device{'s' * (len(devices) > 1)}) | "
@@ -98,9 +99,7 @@ def bench_dense(models, sizes):
                 for mode, threshold in (("representative", default),
                                         ("all points", len(data))):
                     brdfjax.fitting.DENSE_POINTS = threshold
-                    first, _ = timed(lambda data=data, model=model: brdfjax.fit(data,
-                                                                                model=model))
-                    warm, result = timed(lambda data=data, model=model: brdfjax.fit(
+                    first, warm, result = timed(lambda data=data, model=model: brdfjax.fit(
                         data, model=model))
                     rows.append(f"| {model} | {len(data)} | {mode} | {first:.1f} | "
                                 f"{warm:.2f} | {result.error:.10g} | {result.status} |")

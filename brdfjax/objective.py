@@ -325,15 +325,14 @@ def _pair_faces(weights, s_low, s_high):
     """The 9 faces of ``x0, x1 >= 0, s_low <= w0 x0 + w1 x1 <= s_high`` (variables 0, 1)."""
     w0, w1 = weights
 
-    def total(x):
-        return w0 * x[0] + w1 * x[1]
+    def sum_inside(x):
+        total = w0 * x[0] + w1 * x[1]
+        return (total >= s_low) & (total <= s_high)
 
     inside = [(((0.0, {0: 1.0}), None), ((0.0, {1: 1.0}),
-               lambda x: (x[0] >= 0) & (x[1] >= 0) & (total(x) >= s_low) & (total(x) <= s_high)))]
-    edges = [(((0.0, {}), None), ((0.0, {1: 1.0}), lambda x: (total(x) >= s_low)
-                                                            & (total(x) <= s_high))),
-             (((0.0, {0: 1.0}), lambda x: (total(x) >= s_low) & (total(x) <= s_high)),
-              ((0.0, {}), None))]
+               lambda x: (x[0] >= 0) & (x[1] >= 0) & sum_inside(x)))]
+    edges = [(((0.0, {}), None), ((0.0, {1: 1.0}), sum_inside)),
+             (((0.0, {0: 1.0}), sum_inside), ((0.0, {}), None))]
     for s in (s_low, s_high):  # the sum on a bound: x1 = (s - w0 x0) / w1, both >= 0
         edges.append((((0.0, {0: 1.0}), lambda x: (x[0] >= 0) & (x[1] >= 0)),
                       ((s / w1, {0: -w0 / w1}), None)))

@@ -21,6 +21,7 @@ from mkdocs.structure.files import File
 
 REPO = Path(__file__).resolve().parents[1]
 EXTRA_FILES = ("benchmarks/compare.png",)
+ESCAPED_BAR = "\\|"  # a "|" inside a Markdown table cell
 
 
 @event_priority(100)  # before mkdocs-jupyter, which turns the .ipynb files into pages
@@ -33,12 +34,11 @@ def on_files(files, config):
 
 
 def on_page_markdown(markdown, page, config, files):
-    if "<!-- brdfjax-api -->" in markdown:
-        return markdown.replace("<!-- brdfjax-api -->", api_markdown())
-    if "<!-- brdfjax-cli -->" in markdown:
-        return markdown.replace("<!-- brdfjax-cli -->", cli_markdown())
-    if "<!-- brdfjax-models -->" in markdown:
-        return markdown.replace("<!-- brdfjax-models -->", models_markdown())
+    for marker, generate in (("<!-- brdfjax-api -->", api_markdown),
+                             ("<!-- brdfjax-cli -->", cli_markdown),
+                             ("<!-- brdfjax-models -->", models_markdown)):
+        if marker in markdown:
+            return markdown.replace(marker, generate())
     return markdown
 
 
@@ -63,7 +63,7 @@ def models_markdown() -> str:
         model = get(name)
         module = inspect.getmodule(type(model))
         rows = [f"| `{p.name}` | {p.low:g} | {p.high:g} | {p.scale} | "
-                f"{p.reason.replace('|', chr(92) + '|')} |" for p in model.parameters]
+                f"{p.reason.replace('|', ESCAPED_BAR)} |" for p in model.parameters]
         sections.append("\n".join([
             f"## `{name}`", "", (f"{model.summary[0].upper()}{model.summary[1:]}. *Defined in "
             f"`{module.__name__}`.*"), "",
