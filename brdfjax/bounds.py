@@ -31,6 +31,9 @@ from brdfjax.models import get
 from brdfjax.models.base import array_module
 
 LINEAR, LOG10, ASINH = 0, 1, 2
+# Free coordinates beyond ±36 are on a bound: sigmoid(36) = 1 - 2.3e-16, so the parameter
+# is within a few float64 roundings of it (`from_free` clips there).
+SATURATED = 36.0
 SCALES = {"linear": LINEAR, "log10": LOG10, "asinh": ASINH}
 
 
@@ -117,10 +120,17 @@ def to_unit(params, bounds: Bounds) -> jax.Array:
 
 
 def from_free(u, bounds: Bounds) -> jax.Array:
-    """Physical parameters from the unconstrained coordinates that LM searches."""
-    if array_module(u, *bounds) is np:
-        return from_unit(np.exp(-np.logaddexp(0.0, -np.asarray(u))), bounds)
-    return from_unit(jax.nn.sigmoid(u), bounds)  # finite gradient however large |u|
+    """Physical parameters from the unconstrained coordinates that LM searches.
+
+    ``u`` is clipped to ±`SATURATED`: beyond, a parameter sits on its bound and its
+    derivative is exactly zero, not one so small that a scaled LM step would be enormous
+    (`brdfjax.marquardt`).
+    """
+    xp = array_module(u, *bounds)
+    u = xp.clip(xp.asarray(u), -SATURATED, SATURATED)
+    if xp is np:
+        return from_unit(np.exp(-np.logaddexp(0.0, -u)), bounds)
+    return from_unit(jax.nn.sigmoid(u), bounds)
 
 
 def to_free(params, bounds: Bounds, margin: float = 1e-9) -> jax.Array:

@@ -1,8 +1,20 @@
 """Local refinement: optimistix Levenberg-Marquardt from several good starting points.
 
 LM has no bounds, so it runs in the unconstrained coordinates ``u`` of `brdfjax.bounds`
-(``z = sigmoid(u)`` in the unit cube). Several distinct starts run in one compiled call
-with ``throw=False``, each reporting its own status; the caller keeps the best. A start
+(``z = sigmoid(u)`` in the unit cube). It runs in two rounds:
+
+1. **Screening**: up to 40 steps of optimistix's LM, whose damping is the same in every
+   coordinate. Its first steps are short in all of them, so each start settles into its
+   own basin (the five-parameter model's Fresnel-free start stays in the thin valley where
+   the paper's cement has its best fit).
+2. **Convergence**: the best 3 continue with Marquardt's scaling of the damping
+   (`brdfjax.marquardt`), under which a parameter whose best value lies on a bound gets
+   there in a few steps instead of crawling for hundreds. Scaled from the first step, LM
+   jumps too far along a coordinate whose Jacobian column is nearly zero: from the
+   Fresnel-free start (b = 0, where a does not enter), a jumped to its upper bound and the
+   cement fit ended in a worse basin.
+
+Several distinct starts run in one compiled call with ``throw=False``, each reporting its own status; the caller keeps the best. A start
 identical to an earlier one is skipped (a converged island offers the same member more
 than once), which saves about a third of the screening where the starts run one after
 another (under ``vmap``, as with `brdfjax.fit_batch`'s ``polish_batch`` above 1, the
@@ -14,8 +26,8 @@ optimistix's branches (``lax.cond``) becomes a select that computes both sides. 
 16 starts of 40 steps took 12-23 ms mapped against 40 ms vmapped (exploratory timing,
 716 points).
 
-The linear solver is ``lineax.Normal(lineax.Cholesky())``: with 5 parameters the normal
-equations are tiny, it is the fastest here, and unlike the default QR it was not seen to
+Each step solves its P x P normal equations by Cholesky: with at most 5 parameters they
+are tiny, it is the fastest here, and unlike lineax's default QR it was not seen to
 deadlock on several simulated CPU devices (QR and SVD sat at 0 % CPU for 19 minutes).
 """
 
@@ -61,16 +73,20 @@ def _free_residuals(u, args):
     return residuals(from_free(u, bounds), prob)
 
 
-def _levenberg_marquardt(starts, skipped, prob, bounds, max_steps):
+def _levenberg_marquardt(starts, skipped, prob, bounds, max_steps, scaled=True):
     """LM from each row of ``starts`` (one after another), each with its own status.
 
     Rows where ``skipped`` is True are not run: they keep their start, E = inf and 0 steps.
+    ``scaled``: Marquardt's scaling (`brdfjax.marquardt`), else optimistix's LM.
     """
     import lineax as lx  # imported only when traced: a cached stage runs without them
     import optimistix as optx
 
+    from brdfjax.marquardt import ScaledLevenbergMarquardt
+
     tol = TOLERANCE[jnp.dtype(starts.dtype)]
-    solver = optx.LevenbergMarquardt(rtol=tol, atol=tol, linear_solver=lx.Normal(lx.Cholesky()))
+    solver = (ScaledLevenbergMarquardt(rtol=tol, atol=tol) if scaled else
+              optx.LevenbergMarquardt(rtol=tol, atol=tol, linear_solver=lx.Normal(lx.Cholesky())))
 
     def run(u0):
         solution = optx.least_squares(_free_residuals, solver, u0, args=(prob, bounds),
@@ -102,10 +118,10 @@ def polish(starts, prob: Problem, bounds: Bounds, *, max_steps: int = 1000,
            screen_steps: int = 40, keep: int = 3) -> PolishResult:
     """Levenberg-Marquardt from many starts, screened, then run to convergence.
 
-    Every start first takes up to ``screen_steps`` steps; only the ``keep`` best then
-    continue for up to ``max_steps`` more, so that a start crawling along a flat valley
-    towards a bound (hundreds of steps) is run long only where it may win. With ``keep``
-    at least the number of starts there is no screening.
+    Every start first takes up to ``screen_steps`` steps of optimistix's LM; only the
+    ``keep`` best then continue, with Marquardt's scaling (`brdfjax.marquardt`), for up
+    to ``max_steps`` more, so that a start along a flat valley is run long only where it
+    may win. With ``keep`` at least the number of starts, every start continues, in order.
 
     Args:
         starts: unconstrained starting coordinates, (S, P).
@@ -117,10 +133,9 @@ def polish(starts, prob: Problem, bounds: Bounds, *, max_steps: int = 1000,
         A `PolishResult` for the surviving starts (steps counted over both rounds).
     """
     skipped = repeats(starts)
-    if keep >= starts.shape[0]:
-        return _levenberg_marquardt(starts, skipped, prob, bounds, max_steps)
-    screened = _levenberg_marquardt(starts, skipped, prob, bounds, screen_steps)
-    best = jnp.argsort(screened.errors)[:keep]  # skipped repeats (E = inf) come last
+    screened = _levenberg_marquardt(starts, skipped, prob, bounds, screen_steps, scaled=False)
+    count = starts.shape[0]  # skipped repeats (E = inf) sort last
+    best = jnp.argsort(screened.errors)[:keep] if keep < count else jnp.arange(count)
     final = _levenberg_marquardt(screened.free[best], skipped[best], prob, bounds, max_steps)
     return final._replace(steps=final.steps + screened.steps[best],
                           evaluations=final.evaluations + screened.evaluations)
