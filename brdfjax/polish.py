@@ -14,11 +14,12 @@ LM has no bounds, so it runs in the unconstrained coordinates ``u`` of `brdfjax.
    Fresnel-free start (b = 0, where a does not enter), a jumped to its upper bound and the
    cement fit ended in a worse basin.
 
-Several distinct starts run in one compiled call with ``throw=False``, each reporting its own status; the caller keeps the best. A start
-identical to an earlier one is skipped (a converged island offers the same member more
-than once), which saves about a third of the screening where the starts run one after
-another (under ``vmap``, as with `brdfjax.fit_batch`'s ``polish_batch`` above 1, the
-skip becomes a select and every start runs; the results are the same).
+Several distinct starts run in one compiled call with ``throw=False``, each reporting
+its own status; the caller keeps the best. A start identical to an earlier one is
+skipped (a converged island offers the same member more than once), which saves about
+a third of the screening where the starts run one after another (under ``vmap``, as
+with `brdfjax.fit_batch`'s ``polish_batch`` above 1, the skip becomes a select and every
+start runs; the results are the same).
 
 The starts run one after another (``lax.map``), not side by side (``vmap``): a vmapped
 ``while_loop`` runs every lane as long as the slowest, and under ``vmap`` each of
