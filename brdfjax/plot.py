@@ -50,7 +50,9 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
         held_out: incidences (deg) not used in the fit, drawn hollow and dashed.
         bands: optional ``{incidence: (signed_deg, lo68, hi68, lo95, hi95)}`` to shade: the
             curve bands (darker).
-        predictive: the same form for predictive bands (lighter, drawn under the others).
+        predictive: predictive bands (lighter, drawn under the others), ``{incidence:
+            (signed_deg, prediction, lo68, hi68, lo95, hi95)}``; the prediction is drawn
+            dotted where it differs from the model curve (a learned discrepancy).
         errors: ``{incidence: E}`` shown in the legend (a fraction; printed in %).
         log: log-scale the vertical axis (for dark samples with a strong peak).
         model: a model name or `brdfjax.models.Model` (the five-parameter model if None).
@@ -73,10 +75,12 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
         curve = np.asarray(projected_brdf(np.asarray(params, float), *angles, model=model))
         ax.plot(signed, curve, "--" if is_held else "-", color=colour, lw=1.5)
         if predictive and incidence in predictive:
-            x, _, _, lo95, hi95 = predictive[incidence]
+            x, centre, _, _, lo95, hi95 = predictive[incidence]
             if log:  # a band reaching zero or below ends at the bottom of the data's decades
                 lo95 = np.maximum(lo95, 0.1 * np.min(curve[curve > 0], initial=np.inf))
             ax.fill_between(x, lo95, hi95, color=colour, alpha=0.08, lw=0)
+            if not np.allclose(centre, curve, rtol=1e-9, atol=0):
+                ax.plot(x, centre, ":", color=colour, lw=1.5)
         if bands and incidence in bands:
             x, lo68, hi68, lo95, hi95 = bands[incidence]
             ax.fill_between(x, lo95, hi95, color=colour, alpha=0.15, lw=0)
@@ -88,6 +92,43 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
     ax.set_title(textwrap.fill(title or data.name, 80), fontsize=10)
     ax.legend(fontsize=7, ncol=2)
     ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def plot_prediction_bands(held, predictions: dict, path, title: str = "") -> None:
+    """Held-out measurements against predictions and their 68 / 95 % bands, one panel per
+    prediction (``{label: brdfjax.prediction.Prediction}``, in-plane geometry), on one
+    log scale of ``f_r cos(theta_r)`` so that the wings read as well as the peak."""
+    plt = _pyplot()
+    panels = list(predictions.items())
+    fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 4.4), sharey=True,
+                             squeeze=False)
+    x = signed_angle_deg(held)
+    order = np.argsort(x)
+    cos_r = np.cos(held.theta_r)
+    for ax, (label, prediction) in zip(axes[0], panels):
+        def curve(values):
+            return (np.asarray(values) * cos_r)[order]
+
+        positive = curve(prediction.brdf)[curve(prediction.brdf) > 0]
+        bottom = 0.3 * positive.min() if positive.size else 1e-6
+        ax.fill_between(x[order], np.maximum(curve(prediction.lo95), bottom),
+                        curve(prediction.hi95), color="C0", alpha=0.2, lw=0, label="95 %")
+        ax.fill_between(x[order], np.maximum(curve(prediction.lo68), bottom),
+                        curve(prediction.hi68), color="C0", alpha=0.45, lw=0, label="68 %")
+        ax.plot(x[order], curve(prediction.brdf), "-", color="C0", lw=1.5, label="prediction")
+        ax.plot(x, held.brdf * cos_r, "o", ms=3.5, mfc="none", mec="k", label="held-out data")
+        ax.set_yscale("log")
+        ax.set_title(f"{label}\n95 % half-width {100 * np.median(prediction.half_width()):.0f}"
+                     f" % (median), coverage {100 * prediction.coverage('95'):.0f} %",
+                     fontsize=9)
+        ax.set_xlabel("theta_r (deg; > 0: specular side)")
+        ax.grid(alpha=0.3, which="both")
+    axes[0][0].set_ylabel("f_r cos(theta_r)  (1/sr)")
+    axes[0][0].legend(fontsize=8, loc="lower center")
+    fig.suptitle(textwrap.fill(title, 100), fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)

@@ -5,17 +5,29 @@ predicting an unmeasured incidence needs where a new *measurement* falls, and on
 materials the model is wrong in ways no curve uncertainty covers (held-out incidences of
 the RT-300S coatings fall outside the 95 % Laplace band 53-90 % of the time). So the
 intervals here are calibrated on the data's own cross-validation (`brdfjax.validation`):
-split-conformal prediction over incidence folds with a noise-scaled score.
+split-conformal prediction over incidence folds.
 
-1. Every fold's model predicts its held-out incidence; each held-out point gets the score
-   ``r = |y - y_hat| / (|y_hat| + floor)``: relative where the BRDF is well above the
-   noise floor, absolute near zero. ``floor`` is `FLOOR_FRACTION` of the median measured
-   |BRDF| (a stand-in for the instrument's absolute noise).
-2. At level ``p`` (68.27 % or 95 %) the half-width factor is the
-   ``ceil((n + 1) p)``-th smallest of the n scores (infinite when n is too small).
-3. At a new geometry the interval is ``y_hat +- q (|y_hat| + floor)``, with ``y_hat`` the
-   full fit's prediction. Interior folds calibrate geometry inside the fitted incidence
-   range; geometry outside it (extrapolation) uses every fold, the end folds included.
+With ``discrepancy="gp"`` (the default) the prediction is the model corrected by a
+Gaussian process of its log residual (`brdfjax.discrepancy`), and the score follows the
+process's own uncertainty:
+
+1. Every fold's model and a process fitted to that fold's training residuals predict the
+   held-out incidence: ``mu`` and ``sigma`` of the log residual. Each held-out point gets the
+   score ``r = |log(max(y, 0) + floor) - log(y_hat + floor) - mu| / sigma``.
+2. At level ``p`` (68.27 % or 95 %) the factor ``q`` is the ``ceil((n + 1) p)``-th smallest
+   of the n scores (infinite when n is too small).
+3. At a new geometry the full fit's model ``y_hat`` and the process fitted to all training
+   residuals give the prediction ``(y_hat + floor) exp(mu) - floor`` and the interval
+   ``(y_hat + floor) exp(mu +- q sigma) - floor``: wide where the process is unsure.
+
+With ``discrepancy="none"`` the prediction is the model itself and the score
+``r = |y - y_hat| / (|y_hat| + floor)`` (the interval ``y_hat +- q (|y_hat| + floor)``).
+Either way ``floor`` is `FLOOR_FRACTION` of the median measured |BRDF| (a stand-in for the
+instrument's absolute noise). Interior folds calibrate geometry inside the fitted incidence
+range; geometry outside it (extrapolation) uses every fold, the end folds included. The end
+folds extrapolate by the spacing of the two outermost incidences on their side: that is how
+far beyond the measured range a prediction is calibrated (`Calibration.reach`). Predictions
+are still given past it, with a warning (`Prediction.warnings`).
 
 Assumptions, stated plainly: the score of a new measurement is exchangeable with the
 scores of the held-out incidences (the model errs at an unmeasured incidence as it errs
@@ -28,7 +40,8 @@ incidences the calibration set is small: 3 incidences give one interior fold.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+import warnings
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -36,6 +49,7 @@ from brdfjax.measurements import Measurements
 
 LEVELS = {"68": 0.6827, "95": 0.95}
 FLOOR_FRACTION = 0.05
+DISCREPANCIES = ("gp", "none")
 
 
 @dataclass
@@ -47,6 +61,11 @@ class Calibration:
         every: scores of every fold's held-out points.
         floor: the absolute floor of the score's scale (1/sr).
         low, high: the fitted incidence range (deg): inside it ``interior`` calibrates.
+        reach: the incidences (deg) up to which extrapolation is calibrated (`reach_of`).
+        discrepancy: the process fitted to all training residuals (None: no correction).
+        corrected_errors: with a discrepancy, each fold's held-out E of Eq. (6) of the
+            corrected prediction, by the fold's label.
+        interior_labels: the labels of the interior folds.
     """
 
     interior: np.ndarray
@@ -54,6 +73,22 @@ class Calibration:
     floor: float
     low: float
     high: float
+    reach: tuple = (-np.inf, np.inf)
+    discrepancy: object = None
+    corrected_errors: dict = field(default_factory=dict)
+    interior_labels: tuple = ()
+
+    @property
+    def kind(self) -> str:
+        return "none" if self.discrepancy is None else "gp"
+
+    @property
+    def corrected_cv_error(self) -> float:
+        """Mean held-out E of Eq. (6) of the corrected predictions over the interior folds
+        (cv_error with the discrepancy; NaN without one)."""
+        values = [self.corrected_errors[k] for k in self.interior_labels
+                  if k in self.corrected_errors]
+        return float(np.mean(values)) if values else float("nan")
 
     def factor(self, level: float, extrapolating: bool) -> float:
         """The half-width factor q at ``level`` (the conformal quantile of the scores)."""
@@ -61,19 +96,102 @@ class Calibration:
         rank = math.ceil((scores.size + 1) * level)
         return float(np.sort(scores)[rank - 1]) if rank <= scores.size else np.inf
 
+    def to_dict(self) -> dict:
+        record = {"discrepancy": self.kind, "floor": self.floor,
+                  "calibration_points": {"interior": int(self.interior.size),
+                                         "every": int(self.every.size)},
+                  "factor95": {"interior": self.factor(LEVELS["95"], False),
+                               "extrapolation": self.factor(LEVELS["95"], True)},
+                  "calibrated_incidences_deg": list(self.reach)}
+        if self.discrepancy is not None:
+            record["process"] = self.discrepancy.to_dict()
+            record["cv_error_corrected"] = self.corrected_cv_error
+        return record
 
-def calibrate(data: Measurements, validation) -> Calibration:
-    """Conformal scores of a `brdfjax.validation.CrossValidation` of ``data``."""
+
+def reach_of(incidences) -> tuple[float, float]:
+    """How far beyond the measured incidences extrapolation is calibrated: the end folds
+    predict an end incidence from the next one in, so by that spacing on each side."""
+    x = np.sort(np.asarray(incidences, float))
+    if x.size < 2:
+        return float(x[0]), float(x[-1])
+    return float(max(0.0, x[0] - (x[1] - x[0]))), float(min(90.0, x[-1] + (x[-1] - x[-2])))
+
+
+def calibrate(data: Measurements, validation, *, discrepancy: str = "gp",
+              fitted=None) -> Calibration:
+    """Conformal scores of a `brdfjax.validation.CrossValidation` of ``data``.
+
+    Args:
+        data: the training measurements the cross-validation ran on.
+        validation: its `CrossValidation`.
+        discrepancy: ``gp`` (a process per fold, and one on every point of ``data``) or
+            ``none``.
+        fitted: the parameter vector fitted to all of ``data`` (for the process on every
+            point; needed with ``gp``).
+    """
+    if discrepancy not in DISCREPANCIES:
+        raise ValueError(f"unknown discrepancy {discrepancy!r}; choose one of "
+                         f"{', '.join(DISCREPANCIES)}")
     floor = FLOOR_FRACTION * float(np.median(np.abs(data.brdf)))
-    scores = {True: [], False: []}
-    for fold in validation.folds:
-        measured = data.brdf[fold.index]
-        score = np.abs(measured - fold.predicted) / (np.abs(fold.predicted) + floor)
-        scores[fold.interior].append(score)
-    interior = np.concatenate(scores[True]) if scores[True] else np.zeros(0)
-    every = np.concatenate(scores[True] + scores[False])
     incidences = data.incidences_deg
-    return Calibration(interior, every, floor, float(incidences.min()), float(incidences.max()))
+    common = {"floor": floor, "low": float(incidences.min()),
+              "high": float(incidences.max()), "reach": reach_of(incidences),
+              "interior_labels": tuple(f.label for f in validation.folds if f.interior)}
+    if discrepancy == "none":
+        scores = [np.abs(data.brdf[f.index] - f.predicted) / (np.abs(f.predicted) + floor)
+                  for f in validation.folds]
+        return Calibration(*_split(validation.folds, scores), **common)
+    if fitted is None:
+        raise ValueError("calibrate(discrepancy='gp') needs the full fit's parameters")
+    from brdfjax.discrepancy import log_residual
+    from brdfjax.models import get
+    from brdfjax.objective import brdf_values, prepare
+    from brdfjax.validation import held_out_error
+
+    model = get(validation.model)
+    geometry = prepare(data, model)
+    folds = validation.folds
+    values = [np.asarray(brdf_values(f.params, geometry, model)) for f in folds]
+    values.append(np.asarray(brdf_values(np.asarray(fitted, float), geometry, model)))
+    masks = [np.ones(len(data), bool) for _ in values]
+    for mask, fold in zip(masks, folds):
+        mask[fold.index] = False
+    processes = _fit_processes(data, values, masks, floor)
+    scores, corrected = [], {}
+    for fold, value, process in zip(folds, values, processes):
+        held = data.select(np.isin(np.arange(len(data)), fold.index))
+        mu, sigma = process.predict(held.theta_i, held.theta_r, held.phi_r)
+        residual = log_residual(held.brdf, value[fold.index], floor)
+        scores.append(np.abs(residual - mu) / sigma)
+        full = value.copy()
+        full[fold.index] = process.correct(value[fold.index], mu)
+        corrected[fold.label] = held_out_error(full, data, np.isin(np.arange(len(data)),
+                                                                   fold.index))
+    return Calibration(*_split(folds, scores), **common, discrepancy=processes[-1],
+                       corrected_errors=corrected)
+
+
+def _split(folds, scores) -> tuple[np.ndarray, np.ndarray]:
+    """(interior scores, every score) of the folds' score arrays."""
+    interior = [s for f, s in zip(folds, scores) if f.interior]
+    return (np.concatenate(interior) if interior else np.zeros(0), np.concatenate(scores))
+
+
+def _fit_processes(data: Measurements, values: list, masks: list, floor: float) -> list:
+    """One `brdfjax.discrepancy.Discrepancy` per (model values, training mask), fitted in
+    one batched call on at most `brdfjax.discrepancy.MAX_POINTS` of each mask's points."""
+    from brdfjax.discrepancy import MAX_POINTS, features, fit_discrepancies, log_residual, subsample
+
+    azimuth = not data.in_plane
+    x = features(data.theta_i, data.theta_r, data.phi_r, azimuth)
+    sets = []
+    for value, mask in zip(values, masks):
+        index = np.flatnonzero(mask)
+        keep = index[subsample((data.theta_r[index], data.phi_r[index], data.theta_i[index]),
+                               MAX_POINTS)]
+        sets.append((x[keep], log_residual(data.brdf[keep], value[keep], floor)))
+    return fit_discrepancies(sets, floor, azimuth)
 
 
 @dataclass
@@ -82,23 +200,29 @@ class Prediction:
 
     Attributes:
         theta_i, theta_r, phi_r: the geometry, degrees as given.
-        brdf: the fitted model's BRDF (1/sr).
+        brdf: the prediction (1/sr): the model corrected by the discrepancy, or the model.
+        model_brdf: the fitted analytic model's BRDF alone.
         lo68, hi68, lo95, hi95: where a new measurement falls with 68.27 % and 95 %
             probability.
         measured: the geometry file's measured BRDF, or None.
         model: the model's name.
+        discrepancy: ``gp`` or ``none``.
+        warnings: what the user should know (geometry beyond the calibrated range).
     """
 
     theta_i: np.ndarray
     theta_r: np.ndarray
     phi_r: np.ndarray
     brdf: np.ndarray
+    model_brdf: np.ndarray
     lo68: np.ndarray
     hi68: np.ndarray
     lo95: np.ndarray
     hi95: np.ndarray
     measured: np.ndarray | None
     model: str
+    discrepancy: str = "none"
+    warnings: list = field(default_factory=list)
 
     def coverage(self, level: str = "95") -> float:
         """The share of measured values inside the interval (NaN without measurements)."""
@@ -107,9 +231,14 @@ class Prediction:
         low, high = getattr(self, f"lo{level}"), getattr(self, f"hi{level}")
         return float(np.mean((self.measured >= low) & (self.measured <= high)))
 
+    def half_width(self) -> np.ndarray:
+        """The 95 % half-width relative to the prediction."""
+        return (self.hi95 - self.lo95) / 2 / np.abs(self.brdf)
+
     def to_csv(self) -> str:
-        """CSV text: ``theta_i,theta_r,phi_r,brdf,lo68,hi68,lo95,hi95[,measured]``."""
-        columns = ["theta_i", "theta_r", "phi_r", "brdf", "lo68", "hi68", "lo95", "hi95"]
+        """CSV text: ``theta_i,theta_r,phi_r,brdf,model_brdf,lo68,hi68,lo95,hi95[,measured]``."""
+        columns = ["theta_i", "theta_r", "phi_r", "brdf", "model_brdf", "lo68", "hi68",
+                   "lo95", "hi95"]
         if self.measured is not None:
             columns.append("measured")
         table = np.stack([getattr(self, c) for c in columns], axis=1)
@@ -117,9 +246,19 @@ class Prediction:
         lines += [",".join(f"{v:.10g}" for v in row) for row in table]
         return "\n".join(lines) + "\n"
 
+    def to_dict(self) -> dict:
+        """A summary for JSON (the values themselves go to the CSV)."""
+        record = {"model": self.model, "discrepancy": self.discrepancy,
+                  "points": int(self.brdf.size),
+                  "median_half_width95": float(np.median(self.half_width())),
+                  "warnings": self.warnings}
+        if self.measured is not None:
+            record["coverage"] = {"95": self.coverage("95"), "68": self.coverage("68")}
+        return record
+
 
 def predict(result, geometry: Measurements, calibration: Calibration | None = None, *,
-            seed: int = 0) -> Prediction:
+            discrepancy: str = "gp", seed: int = 0) -> Prediction:
     """Predictive intervals of a fit at the geometry of ``geometry`` (any brdfjax file).
 
     Args:
@@ -128,6 +267,8 @@ def predict(result, geometry: Measurements, calibration: Calibration | None = No
             ``measured``; a geometry-only file has NaN there).
         calibration: conformal scores; computed by `brdfjax.validation.cross_validate` of
             the fit's training data if None (all folds in one batched fit).
+        discrepancy: ``gp`` (model times the learned correction, the default) or ``none``
+            (the model alone); ignored when ``calibration`` is given (it carries its kind).
         seed: the seed of the cross-validation fits.
 
     Returns:
@@ -140,16 +281,46 @@ def predict(result, geometry: Measurements, calibration: Calibration | None = No
 
         validation = cross_validate(result.training, result.model, seed=seed,
                                     bounds=result.bounds)
-        calibration = calibrate(result.training, validation)
+        calibration = calibrate(result.training, validation, discrepancy=discrepancy,
+                                fitted=result.vector)
     values = np.asarray(brdf_values(result.vector, prepare(geometry, result.model),
                                     result.model))
     incidence = np.degrees(geometry.theta_i)
     outside = (incidence < calibration.low - 1e-6) | (incidence > calibration.high + 1e-6)
-    scale = np.abs(values) + calibration.floor
     bounds = {}
-    for name, level in LEVELS.items():
-        q = np.where(outside, calibration.factor(level, True), calibration.factor(level, False))
-        bounds[f"lo{name}"], bounds[f"hi{name}"] = values - q * scale, values + q * scale
+    process = calibration.discrepancy
+    if process is None:
+        centre, scale = values, np.abs(values) + calibration.floor
+        for name, level in LEVELS.items():
+            q = np.where(outside, calibration.factor(level, True),
+                         calibration.factor(level, False))
+            bounds[f"lo{name}"], bounds[f"hi{name}"] = centre - q * scale, centre + q * scale
+    else:
+        mu, sigma = process.predict(geometry.theta_i, geometry.theta_r, geometry.phi_r)
+        centre = process.correct(values, mu)
+        for name, level in LEVELS.items():
+            q = np.where(outside, calibration.factor(level, True),
+                         calibration.factor(level, False))
+            with np.errstate(over="ignore", invalid="ignore"):
+                bounds[f"lo{name}"] = process.correct(values, mu - q * sigma)
+                bounds[f"hi{name}"] = process.correct(values, mu + q * sigma)
+    notes = []
+    low, high = calibration.reach
+    beyond = (incidence < low - 1e-6) | (incidence > high + 1e-6)
+    if beyond.any():
+        notes.append(f"{int(beyond.sum())} of {beyond.size} points have incidences beyond "
+                     f"{low:g}-{high:g} deg, the range the end folds calibrate (the measured "
+                     f"{calibration.low:g}-{calibration.high:g} deg widened by the spacing of "
+                     "the outermost incidences): their intervals assume the model errs there "
+                     "as it does one incidence step out; measure nearer incidences to trust "
+                     "them")
+        for note in notes:
+            warnings.warn(note, PredictionWarning, stacklevel=2)
     measured = geometry.brdf if not np.all(np.isnan(geometry.brdf)) else None
     return Prediction(incidence, np.degrees(geometry.theta_r), np.degrees(geometry.phi_r),
-                      values, measured=measured, model=result.model.name, **bounds)
+                      centre, values, measured=measured, model=result.model.name,
+                      discrepancy=calibration.kind, warnings=notes, **bounds)
+
+
+class PredictionWarning(UserWarning):
+    """A prediction the calibration does not cover (geometry beyond `Calibration.reach`)."""

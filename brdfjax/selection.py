@@ -3,8 +3,12 @@
 `compare_models` fits each model of `brdfjax.models` to all the data and cross-validates
 it by incidence (`brdfjax.validation`), the full fit and the folds in one batched call. Models are ranked by ``cv_error``, the mean E of
 Eq. (6) on held-out interior incidences: the error a user meets at an incidence they did
-not measure, on one scale for every model. Beside it the table reports E on all data,
-AIC and BIC, the reflectance of Eq. (9) with the energy flag, and parameters at a bound.
+not measure, on one scale for every model. Beside it the table reports ``cv_error`` of the
+model corrected by its learned discrepancy (`brdfjax.discrepancy`, the prediction
+``brdfjax fit --predict`` makes), E on all data, AIC and BIC, the reflectance of Eq. (9)
+with the energy flag, and parameters at a bound. The recommendation names the model to
+predict with (the lowest corrected cv_error) and the compact analytic model (the lowest
+cv_error), which a ray tracer or a report can use on its own.
 
 AIC and BIC use a Gaussian likelihood of the projected BRDF with one variance, estimated
 by maximum likelihood from the fit's residuals (``sigma^2 = RSS / n``, counted as one more
@@ -37,15 +41,23 @@ class ModelScore:
     aic: float
     bic: float
     reflectance: dict
+    calibration: object = None  # with the discrepancy: `brdfjax.prediction.Calibration`
 
     @property
     def cv_error(self) -> float:
         return self.validation.cv_error
 
+    @property
+    def corrected_cv_error(self) -> float:
+        """cv_error of the model times its learned correction (NaN without one)."""
+        return (self.calibration.corrected_cv_error if self.calibration is not None
+                else float("nan"))
+
     def to_dict(self) -> dict:
         return {"params": dict(zip(self.fit.model.names, map(float, self.fit.params))),
                 "error": self.fit.error, "cv_error": self.cv_error,
-                "cv_by_incidence": self.validation.by_incidence, "aic": self.aic,
+                "cv_by_incidence": self.validation.by_incidence,
+                "cv_error_with_discrepancy": self.corrected_cv_error, "aic": self.aic,
                 "bic": self.bic, "reflectance": self.reflectance,
                 "energy_conserving": all(v <= 1.0 for v in self.reflectance.values()),
                 "at_bounds": self.fit.at_bounds, "status": self.fit.status}
@@ -77,6 +89,13 @@ class Comparison:
         default = next((s for s in self.scores if s.name == "five"), None)
         if default is not None and default is not best and np.isfinite(default.cv_error):
             line += f" and {default.cv_error / best.cv_error:.3g}x lower than the paper's model"
+        corrected = ranked({s.name: s.corrected_cv_error for s in self.scores})
+        predictor = next(s for s in self.scores if s.name == corrected[0])
+        if np.isfinite(predictor.corrected_cv_error):
+            line += (f"\nto predict unmeasured geometry: {predictor.name} with its learned "
+                     f"discrepancy (cv_error {100 * predictor.corrected_cv_error:.3g} %; "
+                     f"brdfjax fit FILE --model {predictor.name} --predict GEOMETRY); as a "
+                     f"compact analytic model on its own: {best.name}")
         return line
 
     def to_dict(self) -> dict:
@@ -85,13 +104,14 @@ class Comparison:
 
     def table(self) -> str:
         """The ranked table a user reads."""
-        lines = [(f"  {'model':<17} {'cv_error (%)':>12} {'E all (%)':>10} {'AIC':>10} "
-                 f"{'BIC':>10}  rho(0/30/60 deg)        at bounds")]
+        lines = [(f"  {'model':<17} {'cv_error (%)':>12} {'+ discrepancy':>13} {'E all (%)':>10} "
+                 f"{'AIC':>10} {'BIC':>10}  rho(0/30/60 deg)        at bounds")]
         for name in self.ranking:
             s = next(x for x in self.scores if x.name == name)
             rho = "/".join(f"{v:.3f}" for v in s.reflectance.values())
             flag = " >1!" if any(v > 1 for v in s.reflectance.values()) else ""
-            lines.append(f"  {name:<17} {100 * s.cv_error:12.4g} {100 * s.fit.error:10.4g} "
+            lines.append(f"  {name:<17} {100 * s.cv_error:12.4g} "
+                         f"{100 * s.corrected_cv_error:13.4g} {100 * s.fit.error:10.4g} "
                          f"{s.aic:10.1f} {s.bic:10.1f}  {rho + flag:<23} "
                          f"{', '.join(s.fit.at_bounds) or '-'}")
         for name in self.ranking:
@@ -122,7 +142,7 @@ def information_criteria(result, data: Measurements) -> tuple[float, float]:
 
 
 def compare_models(data: Measurements, models=None, *, seed: int = 0,
-                   progress: bool = False) -> Comparison:
+                   progress: bool = False, discrepancy: str = "gp") -> Comparison:
     """Fit and cross-validate every model (or those named) on ``data``.
 
     The models run in threads, one per core: loading a model's compiled code (about 0.1 s
@@ -134,12 +154,15 @@ def compare_models(data: Measurements, models=None, *, seed: int = 0,
         models: model names (all of `brdfjax.models.available` if None).
         seed: the seed of every fit.
         progress: show a progress bar (tqdm) of the models done.
+        discrepancy: ``gp`` also scores each model corrected by its learned discrepancy
+            (`brdfjax.prediction.calibrate`); ``none`` skips that.
 
     Returns:
         A `Comparison`.
     """
     from brdfjax.hemispherical import reflectance
     from brdfjax.models import available
+    from brdfjax.prediction import calibrate
     from brdfjax.validation import cross_validate
 
     def score(name: str) -> ModelScore:
@@ -148,8 +171,11 @@ def compare_models(data: Measurements, models=None, *, seed: int = 0,
         aic, bic = information_criteria(result, data)
         rho = np.asarray(reflectance(result.params, np.radians(REFLECTANCE_INCIDENCES),
                                      model=result.model))
+        calibration = (calibrate(data, validation, fitted=result.vector)
+                       if discrepancy == "gp" else None)
         return ModelScore(name, result, validation, aic, bic,
-                          {f"{d:g}": float(r) for d, r in zip(REFLECTANCE_INCIDENCES, rho)})
+                          {f"{d:g}": float(r) for d, r in zip(REFLECTANCE_INCIDENCES, rho)},
+                          calibration)
 
     names = list(models or available())
     with (ThreadPoolExecutor(max_workers=os.cpu_count()) as pool,

@@ -49,22 +49,64 @@ def test_folds_hold_out_each_incidence_and_score_it_independently(ggx_data, ggx_
     assert ggx_validation.cv_error < 4 * 0.025**2
 
 
-def test_predictive_intervals_cover_new_measurements_of_an_exact_model(ggx_data,
-                                                                       ggx_validation):
-    """A fresh noise draw at the fitted geometry falls in the 95 % intervals about 95 %
-    of the time (a loose binomial window: 300 correlated points)."""
+@pytest.fixture(scope="module")
+def ggx_fit(ggx_data):
     from brdfjax.fitting import fit
 
-    result = fit(ggx_data, model="ggx")
-    calibration = calibrate(ggx_data, ggx_validation)
+    return fit(ggx_data, model="ggx")
+
+
+@pytest.mark.parametrize("kind", ["gp", "none"])
+def test_predictive_intervals_cover_new_measurements_of_an_exact_model(ggx_data, ggx_validation,
+                                                                       ggx_fit, kind):
+    """A fresh noise draw at the fitted geometry falls in the 95 % intervals about 95 %
+    of the time (a loose binomial window: 300 correlated points)."""
+    calibration = calibrate(ggx_data, ggx_validation, discrepancy=kind, fitted=ggx_fit.vector)
     fresh = np.asarray(brdf(np.array(GGX), ggx_data.theta_i, ggx_data.theta_r,
                             ggx_data.phi_r, model="ggx"))
     fresh = fresh * (1 + 0.025 * np.random.default_rng(8).standard_normal(fresh.size))
     new = Measurements(ggx_data.theta_i, ggx_data.theta_r, ggx_data.phi_r, fresh)
-    prediction = predict(result, new, calibration)
+    prediction = predict(ggx_fit, new, calibration)
+    assert prediction.discrepancy == kind
     assert 0.85 <= prediction.coverage("95") <= 1.0
     assert 0.55 <= prediction.coverage("68") <= 0.85
     assert np.all(prediction.lo95 <= prediction.lo68) and np.all(prediction.hi68 <= prediction.hi95)
+    assert np.all((prediction.lo68 <= prediction.brdf) & (prediction.brdf <= prediction.hi68))
+
+
+def test_discrepancy_of_an_exact_model_is_noise(white_paint):
+    """Where the model is exact (the paper's white paint, 2.5 % noise) the process learns
+    nothing but the noise: its mean correction is below the noise, and the intervals of a
+    held-out incidence shrink to the noise's own (95 %: 1.96 x 2.5 %, within 1.5x)."""
+    from brdfjax.fitting import fit
+    from brdfjax.model import PAPER_SAMPLES
+
+    clean = np.asarray(brdf(PAPER_SAMPLES["white_paint"], white_paint.theta_i,
+                            white_paint.theta_r, white_paint.phi_r))
+    noisy = clean * (1 + 0.025 * np.random.default_rng(1000).standard_normal(clean.size))
+    data = Measurements(white_paint.theta_i, white_paint.theta_r, white_paint.phi_r, noisy)
+    result = fit(data, validate_incidences_deg=[30.0])
+    prediction = predict(result, data.at_incidences([30.0]))
+    assert prediction.discrepancy == "gp"
+    correction = np.log(prediction.brdf / prediction.model_brdf)  # at least mu in size
+    assert np.mean(np.abs(correction)) < 0.025
+    assert np.median(prediction.half_width()) < 1.5 * 1.96 * 0.025
+    assert 0.85 <= prediction.coverage("95") <= 1.0
+
+
+def test_prediction_says_where_extrapolation_is_not_calibrated(ggx_data, ggx_validation,
+                                                               ggx_fit):
+    from brdfjax.prediction import PredictionWarning
+
+    calibration = calibrate(ggx_data, ggx_validation, discrepancy="none")
+    assert calibration.reach == (0.0, 85.0)  # 10-70 deg, outermost spacings 15 deg
+    inside = Measurements.from_degrees([5.0, 80.0], [20.0, 20.0], [180.0, 180.0],
+                                       [np.nan, np.nan])
+    assert predict(ggx_fit, inside, calibration).warnings == []
+    beyond = Measurements.from_degrees([5.0, 88.0], [20.0, 20.0], [180.0, 180.0],
+                                       [np.nan, np.nan])
+    with pytest.warns(PredictionWarning, match="1 of 2 points"):
+        assert len(predict(ggx_fit, beyond, calibration).warnings) == 1
 
 
 def test_scattered_incidences_are_binned():

@@ -373,7 +373,8 @@ def choose_model(keys, args) -> str:
     errors, used, reasons = {}, 0, []
     for key in keys:
         try:
-            comparison = compare_models(read_sample(key, args), seed=args.seed)
+            comparison = compare_models(read_sample(key, args), seed=args.seed,
+                                        discrepancy="none")
         except (DataError, ValueError, OSError) as error:
             reasons.append(f"{key}: {error}")
             continue

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +17,11 @@ from brdfjax.commands import (
 )
 
 DATA = Path(__file__).resolve().parents[2] / "data"
+DISCREPANCIES = ("gp", "none")  # brdfjax.prediction.DISCREPANCIES, without importing JAX
+# --predict with the default model names another model when that one's held-out error is
+# this many times lower.
+BETTER_MODEL_FACTOR = 2.0
+BETTER_MODEL = "ggx"
 UNCERTAINTY_METHODS = ("none", "laplace", "mcmc")
 # Incidences (deg) of the reflectance intervals written to --json.
 REFLECTANCE_INCIDENCES = tuple(range(0, 90, 10))
@@ -80,8 +86,24 @@ def register(subparsers) -> None:
                         "theta_i,theta_r,phi_r), with 68/95 %% predictive intervals "
                         "calibrated on cross-validation; needs --predict-out")
     p.add_argument("--predict-out", metavar="PRED.csv",
-                   help="where --predict writes theta_i,theta_r,phi_r,brdf,lo68,hi68,lo95,"
-                        "hi95[,measured]")
+                   help="where --predict writes theta_i,theta_r,phi_r,brdf,model_brdf,lo68,"
+                        "hi68,lo95,hi95[,measured] (brdf: the prediction; model_brdf: the "
+                        "analytic model alone)")
+    p.add_argument("--discrepancy", choices=DISCREPANCIES, default="gp",
+                   help="what --predict and the plot's predictive bands add to the model: gp, "
+                        "a Gaussian process learned from the model's log residual, which "
+                        "corrects the prediction and narrows the intervals where the data "
+                        "teach it (default); none, the model alone with intervals relative "
+                        "to it")
+    p.add_argument("--export", action="append", default=[], metavar="OUT.bsdf|OUT.astm",
+                   help="tabulate the prediction for optical software: a Zemax tabular .bsdf "
+                        "or an ASTM E1392 .astm (by suffix; repeatable), with the learned "
+                        "discrepancy unless --discrepancy none; the TIS of each incidence is "
+                        "printed")
+    p.add_argument("--export-incidences", type=angles, metavar="DEG", default="0:80:10",
+                   help="incidences of --export's tables (default 0:80:10)")
+    p.add_argument("--export-step", type=float, metavar="DEG", default=5.0,
+                   help="--export's grid step in scatter angle and azimuth (default 5 deg)")
     add_reader_options(p)
     p.set_defaults(run=run_fit)
 
@@ -148,7 +170,11 @@ def run_fit(args) -> None:
         from brdfjax.posterior import require_emcee
 
         require_emcee()  # before the fit, not after it
-    check_writable({"--json": args.json, "--plot": args.plot, "--plot-3d": args.plot_3d,
+    for path in args.export:
+        if not path.endswith(EXPORTS):
+            raise ValueError(f"--export {path}: name a Zemax .bsdf or an ASTM E1392 .astm file")
+    check_writable({**{f"--export {path}": path for path in args.export},
+                    "--json": args.json, "--plot": args.plot, "--plot-3d": args.plot_3d,
                     "--plot-corner": args.plot_corner, "--predict-out": args.predict_out,
                     "--chain": args.chain if args.uncertainty == "mcmc" else None})
     data = load(args.file, **reader_options(args))
@@ -166,11 +192,12 @@ def run_fit(args) -> None:
             write_atomically(args.json, json_text(result.to_dict()))
         written = f" (the result, status failed, is in {args.json})" if args.json else ""
         raise ValueError(f"{args.file}: the fit failed: {result.message}{written}")
-    calibration = validate_and_predict(result, data, args) if args.cv or args.predict else None
+    calibration, prediction = (validate_and_predict(result, data, args)
+                               if args.cv or args.predict or args.export else (None, None))
     uncertainty = estimate_uncertainty(result, data, args)
     if uncertainty is not None:
         print(uncertainty.table(fitted=result.vector, loss=result.loss))
-    write_outputs(result, data, args, uncertainty, calibration)
+    write_outputs(result, data, args, uncertainty, calibration, prediction)
 
 
 def failure_reason() -> str:
@@ -188,7 +215,7 @@ def choose_model(data, seed: int) -> str:
     """``--model auto``: the model with the lowest cv_error (`brdfjax.selection`), said aloud."""
     from brdfjax.selection import compare_models
 
-    comparison = compare_models(data, seed=seed)
+    comparison = compare_models(data, seed=seed, discrepancy="none")  # ranked by cv_error
     print(f"--model auto: {comparison.recommendation()}")
     return comparison.best.name
 
@@ -197,32 +224,77 @@ def validate_and_predict(result, data, args):
     """``--cv`` prints the cross-validation; ``--predict`` writes the predictive intervals.
 
     Returns:
-        The conformal `brdfjax.prediction.Calibration` (for the plot's predictive bands).
+        The conformal `brdfjax.prediction.Calibration` (for the plot's predictive bands and
+        the JSON) and the `brdfjax.prediction.Prediction` (None without --predict).
     """
     from brdfjax.formats import load_geometry, write_atomically
-    from brdfjax.prediction import calibrate, predict
-    from brdfjax.validation import cross_validate
+    from brdfjax.prediction import predict
 
-    validation = cross_validate(result.training, result.model, seed=args.seed,
-                                bounds=result.bounds)
+    calibration, validation = calibrated(result, args)
     if args.cv:
         print(validation.table())
-    calibration = calibrate(result.training, validation)
+        if calibration.discrepancy is not None:
+            print(f"  with the discrepancy (model x learned correction): cv_error = "
+                  f"{100 * calibration.corrected_cv_error:.4g} %")
+    prediction = None
     if args.predict:
         geometry = load_geometry(args.predict, **reader_options(args))
-        prediction = predict(result, geometry, calibration)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # printed below, with the rest
+            prediction = predict(result, geometry, calibration)
         write_atomically(args.predict_out, prediction.to_csv())
-        line = f"predictions at {len(geometry)} points written to {args.predict_out}"
+        what = ("the model times its learned correction, --discrepancy gp"
+                if prediction.discrepancy == "gp" else "the model alone, --discrepancy none")
+        line = (f"predictions at {len(geometry)} points written to {args.predict_out} "
+                f"({what}); median 95 % half-width "
+                f"{100 * np.median(prediction.half_width()):.3g} % of the prediction")
         if prediction.measured is not None:
             line += (f"; measured values inside the 95 % intervals: "
                      f"{100 * prediction.coverage('95'):.1f} %, 68 %: "
                      f"{100 * prediction.coverage('68'):.1f} %")
         print(line)
-    return calibration
+        for note in prediction.warnings:
+            print(f"  warning: {note}")
+        if result.model.name == "five":
+            suggest_model(result, args, validation, calibration)
+    return calibration, prediction
+
+
+def calibrated(result, args, model=None):
+    """The conformal calibration of ``result`` (or of ``model`` fitted to the same data),
+    and the cross-validation it came from."""
+    from brdfjax.prediction import calibrate
+    from brdfjax.validation import cross_validate
+
+    full = result
+    if model is not None:
+        from brdfjax.fitting import fit
+
+        full = fit(result.training, model=model, seed=args.seed, loss=result.loss)
+    validation = cross_validate(full.training, full.model, seed=args.seed, bounds=full.bounds)
+    return calibrate(full.training, validation, discrepancy=args.discrepancy,
+                     fitted=full.vector), validation
+
+
+def suggest_model(result, args, validation, calibration) -> None:
+    """Say so when `BETTER_MODEL` predicts the held-out incidences much better than the
+    paper's model, with the command that uses it."""
+    other, other_validation = calibrated(result, args, BETTER_MODEL)
+
+    def held_out(c, v):
+        return c.corrected_cv_error if c.discrepancy is not None else v.cv_error
+
+    ours, theirs = held_out(calibration, validation), held_out(other, other_validation)
+    if np.isfinite(ours) and theirs * BETTER_MODEL_FACTOR < ours:
+        print(f"  note: {BETTER_MODEL} predicts the held-out incidences {ours / theirs:.3g}x "
+              f"better than the paper's model (cv_error {100 * theirs:.3g} % against "
+              f"{100 * ours:.3g} %): brdfjax fit {args.file} --model {BETTER_MODEL} "
+              f"--predict {args.predict} --predict-out {args.predict_out}")
 
 
 def predictive_bands(result, incidences_deg, calibration) -> dict:
-    """Predictive 68/95 % bands of ``f_r cos(theta_r)`` along the plot's in-plane curves."""
+    """The prediction and its 68/95 % bands of ``f_r cos(theta_r)`` along the plot's in-plane
+    curves: ``{incidence: (signed_deg, prediction, lo68, hi68, lo95, hi95)}``."""
     from brdfjax.measurements import Measurements
     from brdfjax.plot import curve_angles
     from brdfjax.prediction import predict
@@ -231,10 +303,12 @@ def predictive_bands(result, incidences_deg, calibration) -> dict:
     for incidence in incidences_deg:
         angles, signed = curve_angles(incidence)
         geometry = Measurements(*angles, np.full(signed.size, np.nan))
-        prediction = predict(result, geometry, calibration)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the plot's incidences are the data's own
+            prediction = predict(result, geometry, calibration)
         cos_r = np.cos(angles[1])
         bands[incidence] = (signed, *(getattr(prediction, k) * cos_r
-                                      for k in ("lo68", "hi68", "lo95", "hi95")))
+                                      for k in ("brdf", "lo68", "hi68", "lo95", "hi95")))
     return bands
 
 
@@ -249,8 +323,6 @@ def estimate_uncertainty(result, data, args):
     if result.status == "failed":
         print("uncertainty: none, the fit failed")
         return None
-    import warnings
-
     from brdfjax.posterior import UncertaintyWarning
 
     with warnings.catch_warnings():
@@ -265,7 +337,8 @@ def estimate_uncertainty(result, data, args):
                                 seed=args.seed, chain_path=args.chain)
 
 
-def write_outputs(result, data, args, uncertainty=None, calibration=None) -> None:
+def write_outputs(result, data, args, uncertainty=None, calibration=None,
+                  prediction=None) -> None:
     """The files asked for, each written whole or not at all, after all computing is done.
 
     With an ``uncertainty`` result, --json gains an "uncertainty" entry (parameter
@@ -273,12 +346,17 @@ def write_outputs(result, data, args, uncertainty=None, calibration=None) -> Non
     95 % curve bands around the fitted curves (not where the approximation is
     untrustworthy: the reason is printed instead), and --plot-corner draws the posterior.
     With a ``calibration`` (--cv or --predict), --plot also draws the lighter predictive
-    bands: where a new measurement falls (`brdfjax.prediction`). Data that are not in the
+    bands: where a new measurement falls (`brdfjax.prediction`), around the prediction
+    (dotted where the discrepancy corrects the model), and --json gains a "prediction"
+    entry (the calibration, the learned process, and the ``prediction``'s summary). Data that are not in the
     plane of incidence are drawn as polar maps of data, model and residual.
     """
     from brdfjax.formats import json_text, replace_atomically, write_atomically
 
     record = result.to_dict()
+    if calibration is not None:
+        record["prediction"] = {**calibration.to_dict(),
+                                **(prediction.to_dict() if prediction is not None else {})}
     bands = None
     if uncertainty is not None:
         from brdfjax.bands import curve_bands, reflectance_bands
@@ -334,9 +412,47 @@ def write_outputs(result, data, args, uncertainty=None, calibration=None) -> Non
 
         replace_atomically(args.plot_corner, lambda path: plot_corner(
             uncertainty, path, title=f"{data.name}: {uncertainty.method} posterior"))
-    written = [path for path in (args.json, args.plot, args.plot_3d, args.plot_corner) if path]
+    for path in args.export:
+        export(path, result, data, args, calibration.discrepancy if calibration else None)
+    written = [path for path in (args.json, args.plot, args.plot_3d, args.plot_corner,
+                                 *args.export) if path]
     if written:
         print(f"wrote {', '.join(written)}")
+
+
+EXPORTS = (".bsdf", ".astm")
+
+
+def export(path, result, data, args, correction) -> None:
+    """Write ``--export``'s table (`brdfjax.formats.zemax.write_model` or
+    `brdfjax.formats.astm.write_model_astm`) on the ``--export-*`` grid, and say its TIS."""
+    from brdfjax.formats.astm import write_model_astm
+    from brdfjax.formats.zemax import tis, write_model, zemax_to_angles
+
+    step = args.export_step
+    incidences = np.asarray(args.export_incidences, float)
+    options = {"sample": data.name, "model": result.model, "correction": correction,
+               "wavelength_nm": data.metadata.get("wavelength_nm")}
+    azimuths, radials = np.arange(0, 180 + step / 2, step), np.arange(0, 90 + step / 2, step)
+    if path.endswith(".bsdf"):
+        totals = write_model(path, result.params, incidences, azimuths, radials, **options)
+    else:
+        write_model_astm(path, result.params, incidences, np.arange(0, 90, step), azimuths,
+                         **options)
+        # the TIS of the same prediction on Zemax's grid, for comparison with the .bsdf
+        from brdfjax.formats.zemax import evaluate_model
+
+        totals = []
+        for aoi in incidences:
+            a, r = np.meshgrid(azimuths, radials, indexing="ij")
+            theta_r, phi_r = zemax_to_angles(aoi, a, r)
+            values = evaluate_model(result.params, aoi, np.minimum(theta_r, 90.0), phi_r,
+                                    result.model, correction)
+            totals.append(tis(np.where(theta_r < 90.0 - 1e-9, values, 0.0), aoi, azimuths,
+                              radials))
+    what = "model x learned discrepancy" if correction is not None else "model"
+    print(f"{path}: {what} on a {step:g} deg grid; TIS at "
+          + ", ".join(f"{aoi:g} deg {t:.4g}" for aoi, t in zip(incidences, totals)))
 
 
 def incidence_lines(errors: dict, result) -> list[str]:

@@ -10,12 +10,17 @@ def register(subparsers) -> None:
         "models", help="fit every model, cross-validate by incidence, rank them",
         description="Fit each model on all incidences, hold out each incidence in turn to "
                     "measure how well it predicts what it did not see, and rank the models "
-                    "by cv_error (the mean held-out E of Eq. 6 over interior incidences).")
+                    "by cv_error (the mean held-out E of Eq. 6 over interior incidences); "
+                    "beside it, cv_error of each model corrected by its learned discrepancy "
+                    "(what brdfjax fit --predict predicts with).")
     p.add_argument("file", help="the measurement file (any format brdfjax reads)")
     p.add_argument("--models", metavar="A,B,...",
                    help="models to compare (default: all: five, beckmann, ggx, lambert, rpv, "
                         "torrance-sparrow)")
     p.add_argument("--seed", type=int, default=0, help="the seed of every fit (default 0)")
+    p.add_argument("--discrepancy", choices=("gp", "none"), default="gp",
+                   help="gp: also score each model with its learned discrepancy (default); "
+                        "none: the analytic models alone")
     p.add_argument("--json", metavar="OUT", help="write the comparison as JSON")
     p.add_argument("--plot", metavar="OUT",
                    help="the models over the data, one panel per incidence, with each "
@@ -32,7 +37,8 @@ def run_models(args) -> None:
     enable()
     data = load(args.file, **reader_options(args))
     names = [n.strip() for n in args.models.split(",")] if args.models else None
-    comparison = compare_models(data, names, seed=args.seed, progress=True)
+    comparison = compare_models(data, names, seed=args.seed, progress=True,
+                                discrepancy=args.discrepancy)
     print(f"{data.name}: {len(data)} points, models ranked by cv_error")
     print(comparison.table())
     if args.json:

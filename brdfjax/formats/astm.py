@@ -109,7 +109,7 @@ def write(data: Measurements, path) -> None:
 
 def write_model_astm(path, params, incidences_deg, theta_r_deg=tuple(range(0, 90, 5)),
                 phi_r_deg=tuple(range(0, 181, 10)), sample: str = "brdfjax model",
-                wavelength_nm: float | None = None, model=None) -> None:
+                wavelength_nm: float | None = None, model=None, correction=None) -> None:
     """Export a fitted model (any of `brdfjax.models`) as an E1392 file tabulated on a grid.
 
     Evaluates the model at every (incidence, theta_r, phi_r) combination through
@@ -127,6 +127,8 @@ def write_model_astm(path, params, incidences_deg, theta_r_deg=tuple(range(0, 90
         sample: written as ``SAMPLE_NAME``.
         wavelength_nm: names the output column (``<nm>nm``) when given, else ``BRDF``.
         model: a model name or `brdfjax.models.Model` (the five-parameter model if None).
+        correction: a learned discrepancy to apply (`brdfjax.discrepancy.Discrepancy`), or
+            None.
     """
     from brdfjax.formats.zemax import evaluate_model, model_comment, parameter_comment
 
@@ -136,8 +138,8 @@ def write_model_astm(path, params, incidences_deg, theta_r_deg=tuple(range(0, 90
     # The normal is one direction: keep it once per incidence, at azimuth 0.
     keep = (theta_r > 0) | (phi_r == phi_r.min())
     theta_i, theta_r, phi_r = theta_i[keep], theta_r[keep], phi_r[keep] * (theta_r[keep] > 0)
-    values = evaluate_model(params, theta_i, theta_r, phi_r, model)
-    header = {SAMPLE_KEY: sample, "SOURCE": model_comment(model),
+    values = evaluate_model(params, theta_i, theta_r, phi_r, model, correction)
+    header = {SAMPLE_KEY: sample, "SOURCE": model_comment(model, correction),
               "COMMENT": parameter_comment(params, model)}
     _write_table(path, header, *np.radians([theta_i, theta_r, phi_r]), values,
                  _output_name(wavelength_nm))

@@ -407,7 +407,7 @@ def write(data: Measurements, path) -> None:
 
 def write_model(path, params, incidences_deg, azimuths_deg=tuple(range(0, 181, 10)),
                 radial_deg=tuple(range(0, 91, 5)), sample: str = "brdfjax model",
-                wavelength_nm: float | None = None, model=None) -> None:
+                wavelength_nm: float | None = None, model=None, correction=None) -> list:
     """Export the fitted model as a Zemax tabular BSDF file.
 
     Evaluates `brdfjax.model.brdf` at every (incidence, azimuth, radial) grid point above
@@ -425,39 +425,56 @@ def write_model(path, params, incidences_deg, azimuths_deg=tuple(range(0, 181, 1
         sample: the name written in a ``# Sample:`` comment.
         wavelength_nm: recorded in a comment when given.
         model: a model name or `brdfjax.models.Model` (the five-parameter model if None).
+        correction: a learned discrepancy to apply (`brdfjax.discrepancy.Discrepancy`), or
+            None.
+
+    Returns:
+        The TIS of each incidence's table (as written in the file).
     """
     incidences, azimuths, radials = (np.sort(np.asarray(x, dtype=float).reshape(-1))
                                      for x in (incidences_deg, azimuths_deg, radial_deg))
     aoi, azimuth, radial = np.meshgrid(incidences, azimuths, radials, indexing="ij")
     theta_r, phi_r = zemax_to_angles(aoi, azimuth, radial)
     above = theta_r < HORIZON_DEG - 1e-9
-    values = evaluate_model(params, aoi, np.minimum(theta_r, 90.0), phi_r, model)
+    values = evaluate_model(params, aoi, np.minimum(theta_r, 90.0), phi_r, model, correction)
     table = np.where(above, values, 0.0)
-    comments = [f"Sample: {sample}", model_comment(model), parameter_comment(params, model)]
+    comments = [f"Sample: {sample}", model_comment(model, correction),
+                parameter_comment(params, model)]
     if wavelength_nm is not None:
         comments.append(f"wavelength_nm: {wavelength_nm:g}")
-    _write_table(path, "Model", incidences, azimuths, radials, table, comments)
+    return _write_table(path, "Model", incidences, azimuths, radials, table, comments)
 
 
-def evaluate_model(params, theta_i_deg, theta_r_deg, phi_r_deg, model=None) -> np.ndarray:
+def evaluate_model(params, theta_i_deg, theta_r_deg, phi_r_deg, model=None,
+                   correction=None) -> np.ndarray:
     """A model's BRDF (1/sr) at the given angles (degrees, broadcast), for the exports.
 
     The one place the Zemax and ASTM exports evaluate a fitted model (``model``: a name or
-    `brdfjax.models.Model`, the five-parameter model if None).
+    `brdfjax.models.Model`, the five-parameter model if None), corrected by a learned
+    discrepancy where ``correction`` (a `brdfjax.discrepancy.Discrepancy`) is given: then the
+    values are those `brdfjax.predict` gives at the same angles.
     """
     from brdfjax.model import brdf  # JAX only for the export
 
-    angles = np.radians(np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in
-                                              (theta_i_deg, theta_r_deg, phi_r_deg))))
-    return np.asarray(brdf(params, *angles, model=model), dtype=float)
+    shape = np.broadcast_shapes(*(np.shape(x) for x in (theta_i_deg, theta_r_deg, phi_r_deg)))
+    angles = [np.radians(np.broadcast_to(np.asarray(x, dtype=float), shape)).reshape(-1)
+              for x in (theta_i_deg, theta_r_deg, phi_r_deg)]
+    values = np.asarray(brdf(params, *angles, model=model), dtype=float)
+    if correction is not None:
+        values = correction.correct(values, correction.predict(*angles)[0])
+    return values.reshape(shape)
 
 
-def model_comment(model=None) -> str:
+def model_comment(model=None, correction=None) -> str:
     """Which model an export tabulates, for its header."""
     from brdfjax.models import get
 
     model = get(model)
-    return f"BRDF model {model.name} ({model.summary.split(':')[0]}), exported by brdfjax"
+    text = f"BRDF model {model.name} ({model.summary.split(':')[0]}), exported by brdfjax"
+    if correction is not None:
+        text += (", times its learned discrepancy (a Gaussian process of the log residual): "
+                 "the table, not the parameters below, is the prediction")
+    return text
 
 
 def parameter_comment(params, model=None) -> str:
@@ -512,8 +529,10 @@ def _write_table(path, source, incidences, azimuths, radials, table, comments) -
             f"ScatterAzimuth\t{len(azimuths)}", angles(azimuths),
             f"ScatterRadial\t{len(radials)}", angles(radials),
             "", "Monochrome", "DataBegin"]
-    for aoi, block in zip(incidences, table):
-        out.append(f"TIS\t{tis(block, aoi, azimuths, radials):.6g}")
+    totals = [tis(block, aoi, azimuths, radials) for aoi, block in zip(incidences, table)]
+    for total, block in zip(totals, table):
+        out.append(f"TIS\t{total:.6g}")
         out += ["\t".join(f"{v:.6e}" for v in row) for row in block]
     out.append("DataEnd")
     write_atomically(path, "\n".join(out) + "\n")
+    return totals

@@ -1,0 +1,139 @@
+"""The learned discrepancy (a Gaussian process on the log residual) and its conformal step."""
+
+import math
+
+import jax
+import numpy as np
+import pytest
+
+from brdfjax import discrepancy
+from brdfjax.prediction import Calibration
+
+
+def direct_process(x, r, fitted):
+    """The same process written out in NumPy: covariance, log likelihood, conditioning."""
+    lengths = np.asarray(fitted.lengths)
+
+    def kernel(a, b):
+        z = (a[:, None, :] - b[None, :, :]) / lengths
+        return fitted.amplitude**2 * np.exp(-0.5 * np.sum(z**2, axis=-1))
+
+    covariance = kernel(x, x) + fitted.noise**2 * np.eye(len(x))
+    centred = r - fitted.mean
+    _, logdet = np.linalg.slogdet(covariance)
+    log_likelihood = -0.5 * (centred @ np.linalg.solve(covariance, centred) + logdet
+                             + len(x) * np.log(2 * np.pi))
+
+    def predict(x_test):
+        cross = kernel(x_test, x)
+        mean = fitted.mean + cross @ np.linalg.solve(covariance, centred)
+        variance = (fitted.amplitude**2 + fitted.noise**2
+                    - np.einsum("ij,ji->i", cross, np.linalg.solve(covariance, cross.T)))
+        return mean, np.sqrt(variance)
+
+    return log_likelihood, predict
+
+
+@pytest.fixture(scope="module")
+def smooth_sets():
+    """Three training sets of different sizes (so two are padded) of a smooth residual."""
+    rng = np.random.default_rng(3)
+    sets = []
+    for size in (20, 29, 45):
+        x = rng.uniform(0.0, 1.3, (size, 2))
+        r = 0.3 * np.sin(3 * x[:, 0]) + 0.1 * x[:, 1] + 0.02 * rng.standard_normal(size)
+        sets.append((x, r))
+    return sets, discrepancy.fit_discrepancies(sets, floor=0.01, azimuth=False)
+
+
+def test_process_matches_a_direct_numpy_gaussian_process(smooth_sets):
+    sets, fitted = smooth_sets
+    x_test = np.random.default_rng(4).uniform(0.0, 1.3, (40, 2))
+    for (x, r), process in zip(sets, fitted):
+        log_likelihood, direct = direct_process(x, r, process)
+        # the padded likelihood, padding removed, is the likelihood of the real points
+        assert float(discrepancy._log_likelihood(process._u, process._x, process._r,
+                                                 float(process.points))) == pytest.approx(
+            log_likelihood, rel=1e-10, abs=1e-8)
+        mean, sd = direct(x_test)
+        mu, sigma = (np.asarray(v)[:40] for v in discrepancy._predict(
+            process._u, process._x, process._r, float(process.points),
+            discrepancy._pad_rows(x_test, 64)))
+        np.testing.assert_allclose(mu, mean, rtol=0, atol=1e-8)
+        np.testing.assert_allclose(sigma, sd, rtol=0, atol=1e-8)
+        # the learned noise is the residuals' own (2 % of log units), not the smooth part
+        assert 0.01 < process.noise < 0.04
+
+
+def test_likelihood_gradient_matches_finite_differences(smooth_sets):
+    _, fitted = smooth_sets
+    process = fitted[1]
+    u = process._u + np.array([0.1, -0.2, 0.3, -0.1, 0.2])  # away from the optimum
+    args = (process._x, process._r, float(process.points))
+    gradient = np.asarray(jax.grad(discrepancy._log_likelihood)(u, *args))
+    step = 1e-6
+    numeric = [(float(discrepancy._log_likelihood(u + step * e, *args))
+                - float(discrepancy._log_likelihood(u - step * e, *args))) / (2 * step)
+               for e in np.eye(u.size)]
+    np.testing.assert_allclose(gradient, numeric, rtol=1e-5, atol=1e-5)
+
+
+def test_hyperparameters_are_a_maximum_of_the_likelihood(smooth_sets):
+    _, fitted = smooth_sets
+    for process in fitted:
+        args = (process._x, process._r, float(process.points))
+        best = float(discrepancy._log_likelihood(process._u, *args))
+        for e in np.eye(process._u.size):
+            for sign in (-1, 1):
+                assert float(discrepancy._log_likelihood(process._u + 0.05 * sign * e,
+                                                         *args)) <= best + 1e-9
+
+
+def test_features_are_the_half_and_difference_angles():
+    angles = np.radians([10.0, 40.0, 70.0])
+    # the specular direction: the half vector is the normal, theta_d the incidence
+    x = discrepancy.features(angles, angles, np.pi, azimuth=False)
+    np.testing.assert_allclose(x[:, 0], 0.0, atol=1e-7)
+    np.testing.assert_allclose(x[:, 1], angles, atol=1e-12)
+    # back-scatter: the half vector is the source direction
+    x = discrepancy.features(angles, angles, 0.0, azimuth=False)
+    np.testing.assert_allclose(x, np.stack([angles, np.zeros(3)], axis=1), atol=1e-7)
+    # in the plane, theta_i = 10, theta_r = 30 on the specular side
+    x = discrepancy.features(np.radians(10.0), np.radians(30.0), np.pi, azimuth=False)
+    np.testing.assert_allclose(np.degrees(x), [10.0, 20.0], atol=1e-9)
+
+
+def test_features_keep_reciprocity_out_of_the_plane():
+    rng = np.random.default_rng(5)
+    ti, tr = rng.uniform(0, 1.5, (2, 200))
+    pr = rng.uniform(0, 2 * np.pi, 200)
+    x = discrepancy.features(ti, tr, pr, azimuth=True)
+    swapped = discrepancy.features(tr, ti, pr, azimuth=True)  # isotropic: phi_i - phi_r only
+    mirrored = discrepancy.features(ti, tr, -pr, azimuth=True)
+    np.testing.assert_allclose(x, swapped, atol=1e-9)
+    np.testing.assert_allclose(x, mirrored, atol=1e-9)
+    assert np.all((x[:, 2] >= 0) & (x[:, 2] <= np.pi / 2))
+
+
+def test_subsample_keeps_every_incidence_its_share():
+    incidence = np.repeat([10.0, 30.0, 50.0, 70.0], 500)
+    theta_r = np.tile(np.arange(500.0), 4)
+    index = discrepancy.subsample((theta_r, np.zeros(2000), incidence), limit=256)
+    assert index.size == 256 and np.unique(index).size == 256
+    counts = np.unique(incidence[index], return_counts=True)[1]
+    assert counts.min() >= 63 and counts.max() <= 65
+
+
+@pytest.mark.parametrize("size", [19, 40, 99])
+def test_conformal_factor_covers_exchangeable_scores(size):
+    """Split-conformal's guarantee: a new exchangeable score falls below the factor with
+    probability at least p, and at most p + 1 / (n + 1) (continuous scores)."""
+    rng = np.random.default_rng(size)
+    level = 0.9
+    trials = 4000
+    scores = rng.lognormal(size=(trials, size + 1))
+    inside = [scores[k, -1] <= Calibration(scores[k, :-1], scores[k, :-1], 0.0, 0.0, 1.0)
+              .factor(level, False) for k in range(trials)]
+    expected = math.ceil((size + 1) * level) / (size + 1)
+    standard_error = math.sqrt(expected * (1 - expected) / trials)
+    assert abs(np.mean(inside) - expected) < 4 * standard_error
