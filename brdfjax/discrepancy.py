@@ -33,7 +33,7 @@ any other point is exactly 0), whose contribution to the likelihood is removed e
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import jax
 import jax.numpy as jnp
@@ -196,18 +196,23 @@ def _fit_hyperparameters(x, r, count, candidates):
 
 
 @stage
-def _predict(u, x, r, count, x_test):
-    """Mean and standard deviation (noise included) of ``r`` at ``x_test`` (T, D)."""
-    from jax.scipy.linalg import solve_triangular
+def _condition(u, x, r, count):
+    """``K^-1 (r - mean)`` and ``L^-1`` (M, M) of a fitted process: what every prediction
+    needs, formed once (XLA's triangular solves on a CPU are slow; products are not)."""
+    mean = _physical(u, x.shape[-1])[0]
+    solver = _process(u, x).solver
+    centred = jnp.where(jnp.arange(r.shape[0]) < count, r, mean) - mean
+    alpha = solver.solve_triangular(solver.solve_triangular(centred), transpose=True)
+    return alpha, solver.solve_triangular(jnp.eye(r.shape[0]))
 
+
+@stage
+def _predict(u, x, alpha, whiten, x_test):
+    """Mean and standard deviation (noise included) of ``r`` at ``x_test`` (T, D), from
+    `_condition`'s ``alpha`` and ``whiten``."""
     mean, amplitude, _, noise = _physical(u, x.shape[-1])
-    real = jnp.arange(r.shape[0]) < count
-    process = _process(u, x)
-    alpha = process.solver.solve_triangular(
-        process.solver.solve_triangular(jnp.where(real, r, mean) - mean), transpose=True)
-    cross = process.kernel(x_test, x)  # (T, M)
-    projected = solve_triangular(process.solver.scale_tril, cross.T, lower=True)
-    variance = amplitude**2 - jnp.sum(projected**2, axis=0) + noise**2
+    cross = _process(u, x).kernel(x_test, x)  # (T, M)
+    variance = amplitude**2 - jnp.sum((cross @ whiten.T) ** 2, axis=1) + noise**2
     return mean + cross @ alpha, jnp.sqrt(jnp.maximum(variance, noise**2))
 
 
@@ -234,15 +239,18 @@ class Discrepancy:
     _u: np.ndarray
     _x: np.ndarray
     _r: np.ndarray
+    _conditioned: tuple | None = field(default=None, repr=False)
 
     def predict(self, theta_i, theta_r, phi_r) -> tuple[np.ndarray, np.ndarray]:
         """``(mu, sigma)`` of the log residual at angles in radians (arrays (T,))."""
         x_test = features(theta_i, theta_r, phi_r, self.azimuth)
         size = x_test.shape[0]
         mu, sigma = np.empty(size), np.empty(size)
+        if self._conditioned is None:
+            self._conditioned = _condition(self._u, self._x, self._r, float(self.points))
         for start in range(0, size, BLOCK):
             block = x_test[start:start + BLOCK]
-            m, s = _predict(self._u, self._x, self._r, float(self.points),
+            m, s = _predict(self._u, self._x, *self._conditioned,
                             _pad_rows(block, _bucket(len(block))))
             mu[start:start + len(block)] = np.asarray(m)[:len(block)]
             sigma[start:start + len(block)] = np.asarray(s)[:len(block)]

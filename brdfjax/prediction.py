@@ -130,46 +130,67 @@ def calibrate(data: Measurements, validation, *, discrepancy: str = "gp",
         fitted: the parameter vector fitted to all of ``data`` (for the process on every
             point; needed with ``gp``).
     """
+    return calibrate_all(data, [(validation, fitted)], discrepancy=discrepancy)[0]
+
+
+def calibrate_all(data: Measurements, validations: list, *,
+                  discrepancy: str = "gp") -> list[Calibration]:
+    """`calibrate` of several cross-validations of ``data`` (``[(validation, fitted)]``, one
+    per model), every process of every model fitted in one batched call.
+
+    Call it from one thread: XLA's LAPACK calls (the processes' Cholesky factorisations)
+    can deadlock when several threads run them at once.
+    """
     if discrepancy not in DISCREPANCIES:
         raise ValueError(f"unknown discrepancy {discrepancy!r}; choose one of "
                          f"{', '.join(DISCREPANCIES)}")
     floor = FLOOR_FRACTION * float(np.median(np.abs(data.brdf)))
     incidences = data.incidences_deg
     common = {"floor": floor, "low": float(incidences.min()),
-              "high": float(incidences.max()), "reach": reach_of(incidences),
-              "interior_labels": tuple(f.label for f in validation.folds if f.interior)}
+              "high": float(incidences.max()), "reach": reach_of(incidences)}
     if discrepancy == "none":
-        scores = [np.abs(data.brdf[f.index] - f.predicted) / (np.abs(f.predicted) + floor)
-                  for f in validation.folds]
-        return Calibration(*_split(validation.folds, scores), **common)
-    if fitted is None:
+        return [Calibration(*_split(v.folds, [
+            np.abs(data.brdf[f.index] - f.predicted) / (np.abs(f.predicted) + floor)
+            for f in v.folds]), **common, interior_labels=_interior(v)) for v, _ in validations]
+    if any(fitted is None for _, fitted in validations):
         raise ValueError("calibrate(discrepancy='gp') needs the full fit's parameters")
     from brdfjax.discrepancy import log_residual
     from brdfjax.models import get
     from brdfjax.objective import brdf_values, prepare
     from brdfjax.validation import held_out_error
 
-    model = get(validation.model)
-    geometry = prepare(data, model)
-    folds = validation.folds
-    values = [np.asarray(brdf_values(f.params, geometry, model)) for f in folds]
-    values.append(np.asarray(brdf_values(np.asarray(fitted, float), geometry, model)))
-    masks = [np.ones(len(data), bool) for _ in values]
-    for mask, fold in zip(masks, folds):
-        mask[fold.index] = False
-    processes = _fit_processes(data, values, masks, floor)
-    scores, corrected = [], {}
-    for fold, value, process in zip(folds, values, processes):
-        held = data.select(np.isin(np.arange(len(data)), fold.index))
-        mu, sigma = process.predict(held.theta_i, held.theta_r, held.phi_r)
-        residual = log_residual(held.brdf, value[fold.index], floor)
-        scores.append(np.abs(residual - mu) / sigma)
-        full = value.copy()
-        full[fold.index] = process.correct(value[fold.index], mu)
-        corrected[fold.label] = held_out_error(full, data, np.isin(np.arange(len(data)),
-                                                                   fold.index))
-    return Calibration(*_split(folds, scores), **common, discrepancy=processes[-1],
-                       corrected_errors=corrected)
+    values, masks = [], []
+    for validation, fitted in validations:
+        model = get(validation.model)
+        geometry = prepare(data, model)
+        for vector in [f.params for f in validation.folds] + [np.asarray(fitted, float)]:
+            values.append(np.asarray(brdf_values(vector, geometry, model)))
+            masks.append(np.ones(len(data), bool))
+        for mask, fold in zip(masks[-len(validation.folds) - 1:], validation.folds):
+            mask[fold.index] = False
+    processes = iter(_fit_processes(data, values, masks, floor))
+    values = iter(values)
+    calibrations = []
+    for validation, _ in validations:
+        scores, corrected = [], {}
+        for fold, value, process in zip(validation.folds, values, processes):
+            held = np.isin(np.arange(len(data)), fold.index)
+            mu, sigma = process.predict(data.theta_i[held], data.theta_r[held],
+                                        data.phi_r[held])
+            residual = log_residual(data.brdf[held], value[held], floor)
+            scores.append(np.abs(residual - mu) / sigma)
+            full = value.copy()
+            full[held] = process.correct(value[held], mu)
+            corrected[fold.label] = held_out_error(full, data, held)
+        next(values)
+        calibrations.append(Calibration(
+            *_split(validation.folds, scores), **common, interior_labels=_interior(validation),
+            discrepancy=next(processes), corrected_errors=corrected))
+    return calibrations
+
+
+def _interior(validation) -> tuple:
+    return tuple(f.label for f in validation.folds if f.interior)
 
 
 def _split(folds, scores) -> tuple[np.ndarray, np.ndarray]:

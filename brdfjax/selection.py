@@ -162,7 +162,7 @@ def compare_models(data: Measurements, models=None, *, seed: int = 0,
     """
     from brdfjax.hemispherical import reflectance
     from brdfjax.models import available
-    from brdfjax.prediction import calibrate
+    from brdfjax.prediction import calibrate_all
     from brdfjax.validation import cross_validate
 
     def score(name: str) -> ModelScore:
@@ -171,11 +171,8 @@ def compare_models(data: Measurements, models=None, *, seed: int = 0,
         aic, bic = information_criteria(result, data)
         rho = np.asarray(reflectance(result.params, np.radians(REFLECTANCE_INCIDENCES),
                                      model=result.model))
-        calibration = (calibrate(data, validation, fitted=result.vector)
-                       if discrepancy == "gp" else None)
         return ModelScore(name, result, validation, aic, bic,
-                          {f"{d:g}": float(r) for d, r in zip(REFLECTANCE_INCIDENCES, rho)},
-                          calibration)
+                          {f"{d:g}": float(r) for d, r in zip(REFLECTANCE_INCIDENCES, rho)})
 
     names = list(models or available())
     with (ThreadPoolExecutor(max_workers=os.cpu_count()) as pool,
@@ -184,4 +181,8 @@ def compare_models(data: Measurements, models=None, *, seed: int = 0,
         for _ in as_completed(running):
             bar.update()
         scores = [job.result() for job in running]
+    if discrepancy == "gp":  # every model's processes in one call, in this thread
+        calibrations = calibrate_all(data, [(s.validation, s.fit.vector) for s in scores])
+        for score_, calibration in zip(scores, calibrations):
+            score_.calibration = calibration
     return Comparison(scores)

@@ -57,7 +57,8 @@ def test_process_matches_a_direct_numpy_gaussian_process(smooth_sets):
             log_likelihood, rel=1e-10, abs=1e-8)
         mean, sd = direct(x_test)
         mu, sigma = (np.asarray(v)[:40] for v in discrepancy._predict(
-            process._u, process._x, process._r, float(process.points),
+            process._u, process._x, *discrepancy._condition(
+                process._u, process._x, process._r, float(process.points)),
             discrepancy._pad_rows(x_test, 64)))
         np.testing.assert_allclose(mu, mean, rtol=0, atol=1e-8)
         np.testing.assert_allclose(sigma, sd, rtol=0, atol=1e-8)

@@ -109,6 +109,56 @@ def test_prediction_says_where_extrapolation_is_not_calibrated(ggx_data, ggx_val
         assert len(predict(ggx_fit, beyond, calibration).warnings) == 1
 
 
+def test_exported_tables_reproduce_the_corrected_predictions(tmp_path, ggx_data,
+                                                            ggx_validation, ggx_fit):
+    """A ray tracer cannot run the process: the .bsdf and .astm tables of model x
+    discrepancy give `predict`'s values at their nodes (7 significant digits)."""
+    from brdfjax.formats import astm, zemax
+
+    calibration = calibrate(ggx_data, ggx_validation, discrepancy="gp", fitted=ggx_fit.vector)
+    correction = calibration.discrepancy
+    totals = zemax.write_model(tmp_path / "p.bsdf", ggx_fit.params, [0.0, 35.0, 70.0],
+                               np.arange(0, 181, 15), np.arange(0, 91, 10), model="ggx",
+                               correction=correction)
+    astm.write_model_astm(tmp_path / "p.astm", ggx_fit.params, [0.0, 35.0, 70.0],
+                          np.arange(0, 90, 10), np.arange(0, 181, 15), model="ggx",
+                          correction=correction)
+    for path in (tmp_path / "p.bsdf", tmp_path / "p.astm"):
+        table = load(path)
+        expected = predict(ggx_fit, table, calibration).brdf
+        np.testing.assert_allclose(table.brdf, expected, rtol=1e-6, atol=0)
+        assert not np.allclose(expected, predict(ggx_fit, table, calibrate(
+            ggx_data, ggx_validation, discrepancy="none")).brdf, rtol=1e-3)
+    assert len(totals) == 3 and all(0 < t < 1 for t in totals)
+
+
+def test_fit_predict_writes_the_corrected_prediction_beside_the_model(tmp_path, ggx_data,
+                                                                     capsys):
+    from brdfjax.formats import csv
+
+    source = tmp_path / "ggx.csv"
+    csv.write(ggx_data, source)
+    rows = {}
+    for kind in ("gp", "none"):
+        out = tmp_path / f"{kind}.csv"
+        assert main(["fit", str(source), "--model", "ggx", "--uncertainty", "none",
+                     "--validate-incidence", "40", "--predict", str(source), "--predict-out",
+                     str(out), "--discrepancy", kind, "--json", str(tmp_path / f"{kind}.json"),
+                     "--export", str(tmp_path / f"{kind}.bsdf")]) == 0
+        header, *lines = out.read_text().splitlines()
+        assert header == "theta_i,theta_r,phi_r,brdf,model_brdf,lo68,hi68,lo95,hi95,measured"
+        rows[kind] = np.array([[float(v) for v in line.split(",")] for line in lines])
+        record = json.loads((tmp_path / f"{kind}.json").read_text())["prediction"]
+        assert record["discrepancy"] == kind and record["points"] == len(ggx_data)
+        printed = capsys.readouterr().out
+        assert f"({'the model times its learned correction' if kind == 'gp' else 'the model alone'}"\
+               in printed
+        assert f"{kind}.bsdf: " in printed and "TIS at 0 deg" in printed
+    np.testing.assert_array_equal(rows["none"][:, 3], rows["none"][:, 4])  # brdf is the model
+    np.testing.assert_array_equal(rows["gp"][:, 4], rows["none"][:, 4])  # the same fit
+    assert not np.allclose(rows["gp"][:, 3], rows["gp"][:, 4], rtol=1e-4)
+
+
 def test_scattered_incidences_are_binned():
     data = load(DATA / "real" / "nist-germer-ptfe" / "PTFE.data.random.csv", wavelength_nm=532)
     groups = incidence_groups(data)
@@ -131,4 +181,8 @@ def test_models_command_ranks_by_cv_error(tmp_path, capsys):
                          "reflectance", "at_bounds"}
     assert five["cv_error"] == pytest.approx(np.mean([five["cv_by_incidence"][k] for k in
                                                       ("21", "30", "45", "52")]), rel=1e-12)
-    assert "recommended: five" in capsys.readouterr().out
+    # the model is exact: its discrepancy learns the noise and changes the held-out E little
+    assert five["cv_error_with_discrepancy"] == pytest.approx(five["cv_error"], rel=0.2)
+    printed = capsys.readouterr().out
+    assert "recommended: five" in printed and "+ discrepancy" in printed
+    assert "to predict unmeasured geometry: five with its learned discrepancy" in printed
