@@ -152,6 +152,11 @@ def run_fit(args) -> None:
                     "--plot-corner": args.plot_corner, "--predict-out": args.predict_out,
                     "--chain": args.chain if args.uncertainty == "mcmc" else None})
     data = load(args.file, **reader_options(args))
+    geometry = None
+    if args.predict:  # read and checked like the output paths: before any fitting
+        from brdfjax.formats import load_geometry
+
+        geometry = load_geometry(args.predict, **reader_options(args))
     if args.model == "auto":
         args.model = choose_model(data, args.seed)
     result = fit(data, args.method, model=args.model, seed=args.seed, loss=args.loss,
@@ -166,7 +171,8 @@ def run_fit(args) -> None:
             write_atomically(args.json, json_text(result.to_dict()))
         written = f" (the result, status failed, is in {args.json})" if args.json else ""
         raise ValueError(f"{args.file}: the fit failed: {result.message}{written}")
-    calibration = validate_and_predict(result, data, args) if args.cv or args.predict else None
+    calibration = (validate_and_predict(result, data, args, geometry)
+                   if args.cv or args.predict else None)
     uncertainty = estimate_uncertainty(result, data, args)
     if uncertainty is not None:
         print(uncertainty.table(fitted=result.vector, loss=result.loss))
@@ -193,13 +199,15 @@ def choose_model(data, seed: int) -> str:
     return comparison.best.name
 
 
-def validate_and_predict(result, data, args):
+def validate_and_predict(result, data, args, geometry=None):
     """``--cv`` prints the cross-validation; ``--predict`` writes the predictive intervals.
+
+    ``geometry`` is the ``--predict`` file, read before the fit (`run_fit`).
 
     Returns:
         The conformal `brdfjax.prediction.Calibration` (for the plot's predictive bands).
     """
-    from brdfjax.formats import load_geometry, write_atomically
+    from brdfjax.formats import write_atomically
     from brdfjax.prediction import calibrate, predict
     from brdfjax.validation import cross_validate
 
@@ -208,8 +216,7 @@ def validate_and_predict(result, data, args):
     if args.cv:
         print(validation.table())
     calibration = calibrate(result.training, validation)
-    if args.predict:
-        geometry = load_geometry(args.predict, **reader_options(args))
+    if geometry is not None:
         prediction = predict(result, geometry, calibration)
         write_atomically(args.predict_out, prediction.to_csv())
         line = f"predictions at {len(geometry)} points written to {args.predict_out}"
