@@ -183,7 +183,9 @@ def clean_run(simulator, tmp_path_factory):
     out = tmp_path_factory.mktemp("clean") / "clean.csv"
     result = measure(port, PLAN, out, progress=False)
     assert result.read_now == 2 * len(PLAN.points) and result.resends == 0
-    return out, load(out)
+    data = load(out)
+    assert data.metadata["sample"] == "clean"  # named for its file, not "sample"
+    return out, data
 
 
 def same_readings(a: Measurements, b: Measurements) -> bool:
@@ -240,7 +242,11 @@ def test_a_disconnected_run_resumes_from_its_journal(simulator, clean_run, tmp_p
                 if r["kind"] == "reading"]
     assert sorted(readings) == sorted((p.index, t) for p in PLAN.points
                                       for t in ("sample", "reference"))
-    assert same_readings(load(out), clean_run[1])
+    resumed = load(out)
+    assert same_readings(resumed, clean_run[1])
+    # No --sample: the file is named for --out (resumed.csv), not "# sample: sample".
+    assert resumed.metadata["sample"] == "resumed"
+    assert "# sample: resumed\n" in out.read_text()
 
 
 @pytest.mark.timeout(60)
