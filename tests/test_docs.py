@@ -59,3 +59,20 @@ def test_the_site_builds_strictly_with_every_name_command_and_notebook(tmp_path)
     assert (site / "benchmarks" / "compare.png").is_file()
     for notebook in (REPO / "notebooks").glob("*.ipynb"):
         assert (site / "notebooks" / notebook.stem / "index.html").is_file(), notebook.name
+
+
+def test_the_readme_states_parameter_order_per_model_and_no_missing_file():
+    """The README's model table gives each model's parameters in the code's order; it claims
+    no single order for every model, points to no file a clone lacks (MODELS.md) and has
+    no option jargon (throw=False) where a user reads what a fit does."""
+    readme = (REPO / "README.md").read_text()
+    rows = dict(re.findall(r"^\| `([\w-]+)`(?: \(default\))? \| ([\w ,]+) \|", readme, re.M))
+    assert set(rows) == set(available())
+    for name, parameters in rows.items():
+        assert tuple(p.strip() for p in parameters.split(",")) == get(name).names, name
+    assert "always ordered" not in readme
+    assert "MODELS.md" not in readme and "throw=False" not in readme
+    for path in re.findall(r"`((?:brdfjax|docs|data|notebooks|benchmarks)/[\w./-]+)`", readme):
+        assert (REPO / path.rstrip(".")).exists() or "*" in path, path
+    data_readme = (REPO / "data" / "real" / "README.md").read_text()
+    assert data_readme.count("the randomly sampled file") == 1  # described once, not twice

@@ -47,6 +47,12 @@ def test_folds_hold_out_each_incidence_and_score_it_independently(ggx_data, ggx_
         np.mean([f.held_error for f in folds[1:4]]), rel=1e-12)
     # the model is exact: held-out E is the noise's, about 0.025^2
     assert ggx_validation.cv_error < 4 * 0.025**2
+    # what cv_error averages is said where it is reported (few folds on a short run)
+    said = ("mean held-out E of 3 interior folds (25, 40, 55 deg); the end incidences 10 "
+            "and 70 deg are extrapolation, not in it")
+    assert ggx_validation.cv_folds == said
+    assert ggx_validation.to_dict()["cv_folds"] == said
+    assert said in ggx_validation.table().splitlines()[0]
 
 
 def test_predictive_intervals_cover_new_measurements_of_an_exact_model(ggx_data,
@@ -89,4 +95,7 @@ def test_models_command_ranks_by_cv_error(tmp_path, capsys):
                          "reflectance", "at_bounds"}
     assert five["cv_error"] == pytest.approx(np.mean([five["cv_by_incidence"][k] for k in
                                                       ("21", "30", "45", "52")]), rel=1e-12)
-    assert "recommended: five" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "recommended: five" in out
+    assert ("models ranked by cv_error, the mean held-out E of 4 interior folds (21, 30, 45, "
+            "52 deg); the end incidences 10 and 60 deg are extrapolation") in out
