@@ -23,6 +23,7 @@ REFLECTANCE_INCIDENCES = tuple(range(0, 90, 10))
 SUMMARY_INCIDENCES = (0.0, 30.0, 60.0)
 # An incidence whose E exceeds the overall E by more than this factor gets a warning.
 INCIDENCE_WARNING = 3.0
+POOR_SHOWN = 6  # poor incidences named in fit's warning (scattered sets may have many)
 FILE_HELP = ("the measurement file: brdfjax .csv, NIST PTFE .csv, ASTM E1392 .astm, J&C "
              "RT-300S .xls or Zemax .bsdf")
 SEED_HELP = ("seeds the genetic search, the random starts and the uncertainty's draws: the "
@@ -365,6 +366,16 @@ def incidence_lines(errors: dict, result) -> list[str]:
     return lines
 
 
+def poor_incidences(errors: dict, overall: float) -> list[float]:
+    """The incidences (deg) whose E exceeds `INCIDENCE_WARNING` times the ``overall`` E.
+
+    Eq. (6) weighs the brightest incidences most, so a small overall E can hide a poor fit
+    at the others; `fit` warns of these and `batch` lists them (``poor_incidences``).
+    """
+    return sorted(float(deg) for deg, e in errors.items()
+                  if np.isfinite(e) and e > INCIDENCE_WARNING * overall)
+
+
 def summary(result, name: str) -> str:
     """A readable table of a `brdfjax.fitting.FitResult`, with the reflectance of Eq. (9)."""
     from brdfjax.bounds import to_unit
@@ -380,12 +391,15 @@ def summary(result, name: str) -> str:
     lines.append(f"  {'E':<{width}} = {100 * result.error:.4g} % on {len(result.residuals)} points "
                  f"(incidences {', '.join(f'{x:g}' for x in result.train_incidences)} deg)")
     lines += incidence_lines(result.error_by_incidence, result)
-    worst = max(result.error_by_incidence.items(), key=lambda item: item[1], default=None)
-    if worst is not None and worst[1] > INCIDENCE_WARNING * result.error:
-        lines.append(f"  warning: at {worst[0]:g} deg E = {100 * worst[1]:.3g} %, more than "
-                     f"{INCIDENCE_WARNING:g}x the overall {100 * result.error:.3g} %: the "
-                     "overall E hides a poor fit there (Eq. 6 is dominated by the brightest "
-                     "incidences; try another --model, or --loss balanced)")
+    poor = poor_incidences(result.error_by_incidence, result.error)
+    if poor:
+        shown = ", ".join(f"{deg:g} deg ({100 * result.error_by_incidence[deg]:.3g} %)"
+                          for deg in poor[:POOR_SHOWN])
+        more = f" and {len(poor) - POOR_SHOWN} more" if len(poor) > POOR_SHOWN else ""
+        lines.append(f"  warning: E exceeds {INCIDENCE_WARNING:g}x the overall "
+                     f"{100 * result.error:.3g} % at {shown}{more}: the overall E hides a "
+                     "poor fit there (Eq. 6 is dominated by the brightest incidences; try "
+                     "another --model, or --loss balanced)")
     if result.validation_error is not None:
         lines.append(f"  held out: E = {100 * result.validation_error:.4g} %")
         lines += incidence_lines(result.validation_by_incidence, result)
