@@ -99,3 +99,25 @@ def test_models_command_ranks_by_cv_error(tmp_path, capsys):
     assert "recommended: five" in out
     assert ("models ranked by cv_error, the mean held-out E of 4 interior folds (21, 30, 45, "
             "52 deg); the end incidences 10 and 60 deg are extrapolation") in out
+
+
+def test_the_models_plot_keeps_its_legends_off_the_curves(tmp_path):
+    """Each panel's legend stands outside its axes (it covered the curves of two panels)."""
+    from brdfjax.plot import plot_models
+    from brdfjax.selection import compare_models
+
+    data = load(DATA / "synthetic" / "white_paint.csv")
+    comparison = compare_models(data, ["lambert", "five"])
+    figure = plot_models(data, comparison, tmp_path / "models.png")
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = FigureCanvasAgg(figure)  # the figure was closed: lay it out again to measure
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    panels = [ax for ax in figure.axes if ax.get_legend() is not None]
+    assert len(panels) == len(comparison.best.validation.folds)
+    for ax in panels:
+        legend = ax.get_legend().get_window_extent(renderer)
+        assert not legend.overlaps(ax.get_window_extent(renderer)), ax.get_title()
+        assert figure.bbox.contains(legend.x0, legend.y0)  # and is not cut off
+    assert (tmp_path / "models.png").stat().st_size > 20000

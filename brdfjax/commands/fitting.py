@@ -280,8 +280,8 @@ def write_outputs(result, data, args, uncertainty=None, calibration=None) -> Non
     intervals and the reflectance's at `REFLECTANCE_INCIDENCES`), --plot draws its 68 % and
     95 % curve bands around the fitted curves (not where the approximation is
     untrustworthy: the reason is printed instead), and --plot-corner draws the posterior.
-    With a ``calibration`` (--cv or --predict), --plot also draws the lighter predictive
-    bands: where a new measurement falls (`brdfjax.prediction`). Data that are not in the
+    With a ``calibration`` (--cv or --predict), --plot also draws the predictive bands
+    (the legend names each shade): where a new measurement falls (`brdfjax.prediction`). Data that are not in the
     plane of incidence are drawn as polar maps of data, model and residual.
     """
     from brdfjax.formats import json_text, replace_atomically, write_atomically
@@ -320,7 +320,7 @@ def write_outputs(result, data, args, uncertainty=None, calibration=None) -> Non
         predictive = (None if calibration is None else
                       predictive_bands(result, data.incidences_deg, calibration))
         kinds = " and ".join(name for name, shown in (
-            ("curve bands (darker)", bands), ("predictive bands (lighter)", predictive))
+            ("curve bands", bands), ("predictive bands", predictive))
             if shown)
         replace_atomically(args.plot, lambda path: plot_fit(
             data, result.vector, path, model=result.model,
