@@ -68,6 +68,7 @@ PROBES = {
         "status": [r.status for r in results]}""",
     "instrument": """{"inside": [bool(x) for x in inside], "status": uncertainty.status}""",
     "models": """{"train": train_e, "held": held_e, "best": best, "wins": int(wins),
+        "table": rows, "runs": names,
         "ptfe_bins": len(bins), "ptfe_points": len(ptfe),
         "ptfe": {m: [cv.cv_error, cv.extrapolation_error] for m, cv in ptfe_cv.items()}}""",
 }
@@ -127,6 +128,10 @@ def check_instrument(found):
 
 def check_models(found):
     train, held, best = found["train"], found["held"], found["best"]
+    # The table names every run in full (it cut "white paint (syn"), one row per model, as
+    # a Markdown table the docs render (a printed one wrapped there).
+    header = [cell.strip() for cell in found["table"][0].strip("|").split("|")]
+    assert header == ["model", *found["runs"]] and len(found["table"]) == 2 + len(train)
     # "On the synthetic white paint the five-parameter model is the truth and wins"
     assert best["white paint (synthetic)"] == "five"
     # "GGX predicts the held-out incidence of the NiTE coating more than ten times better
