@@ -76,3 +76,29 @@ def test_the_readme_states_parameter_order_per_model_and_no_missing_file():
         assert (REPO / path.rstrip(".")).exists() or "*" in path, path
     data_readme = (REPO / "data" / "real" / "README.md").read_text()
     assert data_readme.count("the randomly sampled file") == 1  # described once, not twice
+
+
+def test_cli_help_and_code_blocks_are_not_cut_on_the_right():
+    """The Command line page's --help fits its code block (80 columns; it was written at
+    100 and ran past the right edge), and the site's stylesheet wraps code blocks and lets
+    a wide table scroll in its own box instead of cutting either off."""
+    sys.path.insert(0, str(REPO / "docs"))
+    try:
+        import hooks
+    finally:
+        sys.path.remove(str(REPO / "docs"))
+    previous = os.environ.get("COLUMNS")
+    try:
+        page = hooks.cli_markdown()
+    finally:
+        if previous is None:
+            os.environ.pop("COLUMNS", None)
+        else:
+            os.environ["COLUMNS"] = previous
+    longest = max(page.splitlines(), key=len)
+    assert len(longest) <= 80, longest
+    config = (REPO / "mkdocs.yml").read_text()
+    assert re.search(r"^extra_css:\n  - stylesheets/extra.css$", config, re.M)
+    css = (REPO / "docs" / "stylesheets" / "extra.css").read_text()
+    assert re.search(r"pre > code[^{]*\{[^}]*white-space: pre-wrap", css)
+    assert re.search(r"\.md-typeset__table[^{]*\{[^}]*overflow-x: auto", css)
