@@ -26,8 +26,8 @@ import sys
 import time
 import warnings
 from functools import partial
-from statistics import NormalDist
 from pathlib import Path
+from statistics import NormalDist
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))

@@ -16,7 +16,6 @@ import textwrap
 
 import numpy as np
 
-
 # Opacity of the shaded bands: the curve's 68 % band darkest, its 95 % band lighter, the
 # predictive band (much wider, drawn under them) lightest; strong enough to see on a
 # projector or in print (issue 26: the old 0.3 / 0.15 / 0.08 were faint).

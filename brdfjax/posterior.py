@@ -379,15 +379,15 @@ class UncertaintyResult:
         fit_width = max(12, len(f"fit ({label})"))
         fit_header = "" if fitted is None else f" {f'fit ({label})':>{fit_width}}"
         lines = [f"uncertainty ({self.method}, {self.status}); noise: {noise}",
-                 "  median, std and intervals: the posterior's, whose likelihood weights each "
-                 "point by 1 / its variance"]
+                 ("  median, std and intervals: the posterior's, whose likelihood weights "
+                  "each point by 1 / its variance")]
         if fitted is not None:
             lines += [f"  fit column: {optimum}"
                       + (", which weights every point alike: another estimate, which need "
                          "not lie inside the intervals" if loss == "eq6" else ""),
-                      "  report: the posterior median with its intervals (calibrated: "
-                      "BENCHMARKS.md, uncertainty-consistency); the fit and its E to "
-                      "compare with the paper"]
+                      ("  report: the posterior median with its intervals (calibrated: "
+                       "BENCHMARKS.md, uncertainty-consistency); the fit and its E to "
+                       "compare with the paper")]
         lines.append(f"  {'':>{width}}{fit_header} {'median':>12} {'std':>11}   "
                      f"{'68 % interval':<27} 95 % interval")
         outside = []
@@ -660,14 +660,15 @@ def sample_posterior(data: Measurements, fit, *, walkers: int = 32, max_steps: i
             tau = autocorrelation_time(sampler.get_chain())
             bar.set_postfix(tau=f"{np.max(tau):.1f}")
     timings = {"sampling": time.perf_counter() - tic}
-    return _mcmc_result(sampler, post, tau, chain_path, timings)
+    return _mcmc_result(sampler, post, tau, chain_path, timings, fitted_of(fit))
 
 
 def _converged(tau, steps: int) -> bool:
     return bool(np.all(np.isfinite(tau)) and steps > AUTOCORRELATION_LENGTHS * np.max(tau))
 
 
-def _mcmc_result(sampler, post: Posterior, tau, chain_path, timings) -> UncertaintyResult:
+def _mcmc_result(sampler, post: Posterior, tau, chain_path, timings,
+                 fitted: dict) -> UncertaintyResult:
     """Summaries, diagnostics and warnings of a finished emcee run."""
     steps, walkers = int(sampler.iteration), int(sampler.nwalkers)  # numpy ints from HDF5
     finite = np.all(np.isfinite(tau))
@@ -714,5 +715,5 @@ def _mcmc_result(sampler, post: Posterior, tau, chain_path, timings) -> Uncertai
         samples=samples, noise=noise,
         center=np.mean(flat, axis=0), center_covariance=np.cov(flat.T),
         diagnostics=diagnostics, timings=timings, chain=sampler.get_chain(),
-        bounds=post.bounds, model=post.model, **fitted_of(fit))
+        bounds=post.bounds, model=post.model, **fitted)
 

@@ -66,7 +66,7 @@ def test_the_readme_states_parameter_order_per_model_and_no_missing_file():
     no single order for every model, points to no file a clone lacks (MODELS.md) and has
     no option jargon (throw=False) where a user reads what a fit does."""
     readme = (REPO / "README.md").read_text()
-    rows = dict(re.findall(r"^\| `([\w-]+)`(?: \(default\))? \| ([\w ,]+) \|", readme, re.M))
+    rows = dict(re.findall(r"^\| `([\w-]+)`(?: \(default\))? \| ([\w ,]+) \|", readme, re.MULTILINE))
     assert set(rows) == set(available())
     for name, parameters in rows.items():
         assert tuple(p.strip() for p in parameters.split(",")) == get(name).names, name
@@ -98,7 +98,7 @@ def test_cli_help_and_code_blocks_are_not_cut_on_the_right():
     longest = max(page.splitlines(), key=len)
     assert len(longest) <= 80, longest
     config = (REPO / "mkdocs.yml").read_text()
-    assert re.search(r"^extra_css:\n  - stylesheets/extra.css$", config, re.M)
+    assert re.search(r"^extra_css:\n  - stylesheets/extra.css$", config, re.MULTILINE)
     css = (REPO / "docs" / "stylesheets" / "extra.css").read_text()
     assert re.search(r"pre > code[^{]*\{[^}]*white-space: pre-wrap", css)
     assert re.search(r"\.md-typeset__table[^{]*\{[^}]*overflow-x: auto", css)

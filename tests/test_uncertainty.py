@@ -522,3 +522,10 @@ def test_the_table_and_json_say_which_estimate_the_intervals_are_about(white_fit
     for name in outside:
         row = next(line for line in table.splitlines() if line.split()[:1] == [name])
         assert "*" in row
+
+
+def test_mcmc_keeps_the_fit_it_started_from(white_fit, white_mcmc):
+    """emcee's result, like Laplace's, carries the fit, so its table shows the fit column."""
+    np.testing.assert_array_equal(white_mcmc.fitted, white_fit.vector)
+    assert "fit (Eq. 6)" in white_mcmc.table()
+    assert white_mcmc.to_dict()["fit_outside_ci95"] == white_mcmc.fit_outside()
