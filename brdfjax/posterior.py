@@ -35,6 +35,7 @@ emcee's own once the installed emcee is a final release after 3.1.6.
 
 from __future__ import annotations
 
+import textwrap
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -81,6 +82,10 @@ ABOUT = ("the intervals are about the posterior median, whose likelihood weights
          "it is another estimate and may lie outside them. Report the posterior median with "
          "its intervals (calibrated on synthetic data: 91-98 % of 95 % intervals hold the "
          "truth); quote the fit and its E to compare with the paper.")
+
+
+# The explanatory lines of `UncertaintyResult.table` wrap here: the width of its rows.
+TABLE_WIDTH = 92
 
 
 class UncertaintyWarning(UserWarning):
@@ -378,16 +383,17 @@ class UncertaintyResult:
                           (loss, f"the optimum of the {loss} loss"))
         fit_width = max(12, len(f"fit ({label})"))
         fit_header = "" if fitted is None else f" {f'fit ({label})':>{fit_width}}"
-        lines = [f"uncertainty ({self.method}, {self.status}); noise: {noise}",
-                 ("  median, std and intervals: the posterior's, whose likelihood weights "
+        notes = [("median, std and intervals: the posterior's, whose likelihood weights "
                   "each point by 1 / its variance")]
         if fitted is not None:
-            lines += [f"  fit column: {optimum}"
+            notes += [f"fit column: {optimum}"
                       + (", which weights every point alike: another estimate, which need "
                          "not lie inside the intervals" if loss == "eq6" else ""),
-                      ("  report: the posterior median with its intervals (calibrated: "
+                      ("report: the posterior median with its intervals (calibrated: "
                        "BENCHMARKS.md, uncertainty-consistency); the fit and its E to "
                        "compare with the paper")]
+        lines = [f"uncertainty ({self.method}, {self.status}); noise: {noise}"]
+        lines += [_wrap(note) for note in notes]
         lines.append(f"  {'':>{width}}{fit_header} {'median':>12} {'std':>11}   "
                      f"{'68 % interval':<27} 95 % interval")
         outside = []
@@ -403,9 +409,9 @@ class UncertaintyResult:
                          f"{_interval(self.ci95[k])}")
         if outside:
             verb = "lies outside its" if len(outside) == 1 else "lie outside their"
-            lines.append(f"  * the fit's {', '.join(outside)} {verb} 95 % interval: "
-                         f"expected, the interval is about the posterior median, not about "
-                         f"{optimum}")
+            lines.append(_wrap(f"* the fit's {', '.join(outside)} {verb} 95 % interval: "
+                               "expected, the interval is about the posterior median, not "
+                               f"about {optimum}"))
         size = len(names)
         pairs = sorted(((abs(self.correlation[i, j]), i, j) for i in range(size)
                         for j in range(i + 1, size)), reverse=True)[:3]
@@ -414,6 +420,12 @@ class UncertaintyResult:
                 f"{names[i]}-{names[j]} {self.correlation[i, j]:+.3f}" for _, i, j in pairs))
         lines += [f"  warning: {text}" for text in self.warnings]
         return "\n".join(lines)
+
+
+def _wrap(note: str) -> str:
+    """An explanatory line of the table, wrapped to its rows' width and indented."""
+    return textwrap.fill(note, TABLE_WIDTH, initial_indent="  ", subsequent_indent="    ",
+                         break_on_hyphens=False)
 
 
 def _interval(pair) -> str:
