@@ -22,8 +22,9 @@ NOTEBOOKS = sorted((REPO / "notebooks").glob("*.ipynb"))
 # distribution that provides it. After each notebook has run, every one of them that its
 # kernel imported must be installed by the `docs` extra, which `make docs` installs to run
 # the notebooks (issue 26: `make docs` on a fresh clone failed on `import serial`).
+# (scipy is not among them: jax itself requires it.)
 OPTIONAL_MODULES = {"emcee": "emcee", "corner": "corner", "h5py": "h5py", "serial": "pyserial",
-                    "dask": "dask", "distributed": "dask", "scipy": "scipy"}
+                    "dask": "dask", "distributed": "dask"}
 
 
 def extra_requirements(extra: str) -> set[str]:
