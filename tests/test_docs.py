@@ -101,4 +101,4 @@ def test_cli_help_and_code_blocks_are_not_cut_on_the_right():
     assert re.search(r"^extra_css:\n  - stylesheets/extra.css$", config, re.MULTILINE)
     css = (REPO / "docs" / "stylesheets" / "extra.css").read_text()
     assert re.search(r"pre > code[^{]*\{[^}]*white-space: pre-wrap", css)
-    assert re.search(r"\.md-typeset__table[^{]*\{[^}]*overflow-x: auto", css)
+    assert re.search(r"jupyter-wrapper\) \.md-sidebar--secondary \{\s*display: none", css)
