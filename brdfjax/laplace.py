@@ -54,6 +54,7 @@ from brdfjax.posterior import (
     chi2_warning,
     correlation,
     draw_inside,
+    fitted_of,
     model_variance,
     noise_summary,
     physical,
@@ -158,7 +159,8 @@ def laplace_approximation(data: Measurements, fit, *, draws: int = 2000, seed: i
         covariance=physical_covariance, correlation=correlation(covariance[:size, :size]),
         samples=samples, noise=noise, center=center, center_covariance=covariance,
         diagnostics={"condition_number": condition, "points": int(post.target.shape[0])},
-        timings={"total": time.perf_counter() - tic}, bounds=post.bounds, model=post.model)
+        timings={"total": time.perf_counter() - tic}, bounds=post.bounds, model=post.model,
+        **fitted_of(fit))
 
 
 def find_mode(post: Posterior, start, max_steps: int = 1000) -> np.ndarray:

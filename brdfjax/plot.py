@@ -16,6 +16,12 @@ import textwrap
 
 import numpy as np
 
+# Opacity of the shaded bands: the curve's 68 % band darkest, its 95 % band lighter, the
+# predictive band (much wider, drawn under them) lightest; strong enough to see on a
+# projector or in print (issue 26: the old 0.3 / 0.15 / 0.08 were faint).
+BAND_ALPHA = {"68": 0.45, "95": 0.25}
+PREDICTIVE_ALPHA = 0.14
+
 
 def _pyplot():
     import matplotlib
@@ -32,8 +38,17 @@ def signed_angle_deg(data) -> np.ndarray:
 
 
 def curve_angles(incidence_deg: float, count: int = 361):
-    """In-plane angles (radians) for a smooth curve at one incidence, and the signed degrees."""
+    """In-plane angles (radians) for a smooth curve at one incidence, and the signed degrees.
+
+    ``count`` points from -89.9 to 89.9 deg, the two nearest the back-scatter (``-theta_i``)
+    and specular (``+theta_i``) directions moved onto them: a narrow peak there is drawn at
+    its height, not up to half a step beside it (the white paint's peaks were drawn up to
+    5 % low).
+    """
     signed = np.linspace(-89.9, 89.9, count)
+    for direction in (-incidence_deg, incidence_deg):
+        direction = float(np.clip(direction, -89.9, 89.9))
+        signed[np.argmin(np.abs(signed - direction))] = direction
     theta_i = np.full(count, np.radians(incidence_deg))
     return (theta_i, np.radians(np.abs(signed)), np.where(signed > 0, np.pi, 0.0)), signed
 
@@ -49,13 +64,17 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
         title: figure title.
         held_out: incidences (deg) not used in the fit, drawn hollow and dashed.
         bands: optional ``{incidence: (signed_deg, lo68, hi68, lo95, hi95)}`` to shade: the
-            curve bands (darker).
-        predictive: predictive bands (lighter, drawn under the others), ``{incidence:
-            (signed_deg, prediction, lo68, hi68, lo95, hi95)}``; the prediction is drawn
-            dotted where it differs from the model curve (a learned discrepancy).
+            curve bands, named in the legend.
+        predictive: predictive bands (drawn under the others, lightest, named in the
+            legend), ``{incidence: (signed_deg, prediction, lo68, hi68, lo95, hi95)}``; the
+            prediction is drawn dotted where it differs from the model curve (a learned
+            discrepancy corrects it).
         errors: ``{incidence: E}`` shown in the legend (a fraction; printed in %).
         log: log-scale the vertical axis (for dark samples with a strong peak).
         model: a model name or `brdfjax.models.Model` (the five-parameter model if None).
+
+    Returns:
+        The matplotlib figure (already saved and closed), for inspection.
     """
     from brdfjax.model import projected_brdf
 
@@ -63,6 +82,7 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
     fig, ax = plt.subplots(figsize=(7.5, 5))
     colours = plt.get_cmap("viridis")(np.linspace(0, 0.9, max(1, len(data.incidences_deg))))
     held = {round(float(x), 6) for x in held_out}
+    corrected = False
     for colour, incidence in zip(colours, data.incidences_deg):
         subset = data.at_incidences([incidence])
         is_held = round(float(incidence), 6) in held
@@ -78,23 +98,43 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
             x, centre, _, _, lo95, hi95 = predictive[incidence]
             if log:  # a band reaching zero or below ends at the bottom of the data's decades
                 lo95 = np.maximum(lo95, 0.1 * np.min(curve[curve > 0], initial=np.inf))
-            ax.fill_between(x, lo95, hi95, color=colour, alpha=0.08, lw=0)
+            ax.fill_between(x, lo95, hi95, color=colour, alpha=PREDICTIVE_ALPHA, lw=0)
             if not np.allclose(centre, curve, rtol=1e-9, atol=0):
+                corrected = True
                 ax.plot(x, centre, ":", color=colour, lw=1.5)
         if bands and incidence in bands:
             x, lo68, hi68, lo95, hi95 = bands[incidence]
-            ax.fill_between(x, lo95, hi95, color=colour, alpha=0.15, lw=0)
-            ax.fill_between(x, lo68, hi68, color=colour, alpha=0.3, lw=0)
+            ax.fill_between(x, lo95, hi95, color=colour, alpha=BAND_ALPHA["95"], lw=0)
+            ax.fill_between(x, lo68, hi68, color=colour, alpha=BAND_ALPHA["68"], lw=0)
     ax.set_xlabel("reflection angle theta_r (deg; > 0: specular side, < 0: source side)")
     ax.set_ylabel("f_r cos(theta_r)  (1/sr)")
     if log:
         ax.set_yscale("log")
     ax.set_title(textwrap.fill(title or data.name, 80), fontsize=10)
-    ax.legend(fontsize=7, ncol=2)
+    handles, _ = ax.get_legend_handles_labels()
+    # The shades are named in the legend, so no title has to say "lighter" or "darker".
+    from matplotlib.patches import Patch
+
+    shade = "0.35"
+    if bands:
+        handles += [Patch(color=shade, alpha=BAND_ALPHA["68"], lw=0,
+                          label="68 % band of the fitted curve"),
+                    Patch(color=shade, alpha=BAND_ALPHA["95"], lw=0,
+                          label="95 % band of the fitted curve")]
+    if predictive:
+        handles.append(Patch(color=shade, alpha=PREDICTIVE_ALPHA, lw=0,
+                             label="95 % predictive band (a new measurement)"))
+    if corrected:
+        from matplotlib.lines import Line2D
+
+        handles.append(Line2D([], [], ls=":", color=shade, lw=1.5,
+                              label="prediction: model x learned discrepancy"))
+    ax.legend(handles=handles, fontsize=7, ncol=2)
     ax.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+    return fig
 
 
 def plot_prediction_bands(held, predictions: dict, path, title: str = "") -> None:
@@ -139,8 +179,15 @@ def plot_hemisphere(params, incidences_deg, path, title: str = "", resolution: i
     """3-D surfaces of the model's f_r cos(theta_r) over the hemisphere, one per incidence.
 
     The horizontal coordinates are ``sin(tr) cos(pr)``, ``sin(tr) sin(pr)`` (the projected
-    hemisphere, source at +x), the height is f_r cos(tr). Each axis carries three or four
-    ticks in small type, so the labels do not run into each other.
+    hemisphere, source at +x), the height is f_r cos(tr), coloured by height with a colour
+    bar per panel. The grid holds the back-scatter and specular directions of each incidence
+    exactly and is drawn at full resolution (no facet is skipped), so a narrow peak is drawn
+    at its true height; each panel's title states that height and where it is. Facets are
+    drawn without antialiasing, whose seams between thousands of small facets showed as
+    moire rings. Each axis carries three or four ticks in small type.
+
+    Returns:
+        ``{incidence: the highest f_r cos(theta_r) drawn}`` (1/sr).
     """
     from matplotlib.ticker import MaxNLocator
 
@@ -148,27 +195,45 @@ def plot_hemisphere(params, incidences_deg, path, title: str = "", resolution: i
 
     plt = _pyplot()
     count = len(incidences_deg)
-    fig = plt.figure(figsize=(5.2 * count, 5.2))
-    theta_r, phi_r = np.meshgrid(np.radians(np.linspace(0, 89.5, resolution)),
-                                 np.radians(np.linspace(0, 360, 2 * resolution)))
+    fig = plt.figure(figsize=(4.6 * count, 4.4))
+    # phi_r: an odd count puts 0 and 180 deg (back-scatter and specular) on the grid.
+    phi = np.radians(np.linspace(0, 360, 2 * resolution + 1))
+    peaks = {}
     for k, incidence in enumerate(incidences_deg):
+        zenith = np.union1d(np.linspace(0, 89.5, resolution), [min(float(incidence), 89.5)])
+        theta_r, phi_r = np.meshgrid(np.radians(zenith), phi)
         values = np.asarray(projected_brdf(np.asarray(params, float), np.radians(incidence),
                                            theta_r, phi_r, model=model))
+        peak = np.unravel_index(np.nanargmax(values), values.shape)
         ax = fig.add_subplot(1, count, k + 1, projection="3d")
-        ax.plot_surface(np.sin(theta_r) * np.cos(phi_r), np.sin(theta_r) * np.sin(phi_r),
-                        values, cmap="viridis", linewidth=0, rcount=80, ccount=80)
-        ax.set_title(f"incidence {incidence:g} deg", fontsize=10)
+        # A facet is coloured by the mean of its corners: the colour scale is set to the
+        # peak itself, so the colour bar reaches the height the surface is drawn to.
+        surface = ax.plot_surface(np.sin(theta_r) * np.cos(phi_r),
+                                  np.sin(theta_r) * np.sin(phi_r), values, cmap="viridis",
+                                  vmin=min(0.0, np.nanmin(values)), vmax=values[peak],
+                                  linewidth=0, antialiased=False, rstride=1, cstride=1)
+        ax.set_zlim(min(0.0, np.nanmin(values)), values[peak])
+        where = (f"theta_r {np.degrees(theta_r[peak]):.3g} deg, "
+                 + ("source side" if np.cos(phi_r[peak]) > 0 else "specular side")
+                 if np.degrees(theta_r[peak]) >= 0.5 else "the normal")
+        ax.set_title(f"incidence {incidence:g} deg\npeak {values[peak]:.3g} 1/sr at {where}",
+                     fontsize=9)
+        peaks[float(incidence)] = float(values[peak])
         for axis, ticks in ((ax.xaxis, 3), (ax.yaxis, 3), (ax.zaxis, 4)):
             axis.set_major_locator(MaxNLocator(ticks))
-        ax.tick_params(labelsize=7, pad=1)
-        ax.set_xlabel("sin(theta_r) cos(phi_r)\n(+1: source side)", fontsize=8, labelpad=6)
-        ax.set_ylabel("sin(theta_r) sin(phi_r)", fontsize=8, labelpad=6)
-        ax.set_zlabel("f_r cos(theta_r)  (1/sr)", fontsize=8, labelpad=8)
-        ax.set_box_aspect(None, zoom=0.85)
-    fig.suptitle(title or "fitted model over the hemisphere")
-    fig.subplots_adjust(left=0.02, right=0.95, bottom=0.05, top=0.88, wspace=0.15)
-    fig.savefig(path, dpi=110)
+        ax.tick_params(labelsize=7, pad=0)
+        ax.set_xlabel("sin(theta_r) cos(phi_r)\n(+1: source side)", fontsize=7, labelpad=4)
+        ax.set_ylabel("sin(theta_r) sin(phi_r)", fontsize=7, labelpad=2)
+        ax.set_zlabel("")  # the colour bar carries the quantity and its unit
+        ax.set_box_aspect(None, zoom=1.05)
+        bar = fig.colorbar(surface, ax=ax, shrink=0.55, pad=0.1, aspect=18)
+        bar.set_label("f_r cos(theta_r)  (1/sr)", fontsize=8)
+        bar.ax.tick_params(labelsize=7)
+    fig.suptitle(title or "fitted model over the hemisphere", fontsize=11)
+    fig.subplots_adjust(left=0.0, right=0.96, bottom=0.04, top=0.84, wspace=0.08)
+    fig.savefig(path, dpi=110, bbox_inches="tight", pad_inches=0.1)
     plt.close(fig)
+    return peaks
 
 
 def plot_polar_maps(data, predicted, path, title: str = "", max_rows: int = 6):
@@ -404,7 +469,10 @@ def plot_models(data, comparison, path, title: str = "", max_panels: int = 6):
 
     Solid: the fit on all incidences; dashed: the fit of the fold that held this incidence
     out, i.e. the model's prediction of an incidence it did not see. The legend gives each
-    model's held-out E at that incidence.
+    model's held-out E at that incidence; it stands below its panel, never over the curves.
+
+    Returns:
+        The matplotlib figure (already saved and closed), for inspection.
     """
     from brdfjax.model import projected_brdf
 
@@ -413,7 +481,7 @@ def plot_models(data, comparison, path, title: str = "", max_panels: int = 6):
     panels = folds[:max_panels]
     columns = min(3, len(panels))
     rows = -(-len(panels) // columns)
-    fig, axes = plt.subplots(rows, columns, figsize=(4.6 * columns, 3.6 * rows), squeeze=False)
+    fig, axes = plt.subplots(rows, columns, figsize=(4.6 * columns, 4.9 * rows), squeeze=False)
     colours = plt.get_cmap("tab10")
     for ax, fold in zip(axes.ravel(), panels):
         subset = data.at_incidences([fold.low]) if fold.low == fold.high else data.select(
@@ -438,7 +506,10 @@ def plot_models(data, comparison, path, title: str = "", max_panels: int = 6):
         ax.set_ylabel("f_r cos(theta_r) (1/sr)", fontsize=8)
         ax.tick_params(labelsize=7)
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=6)
+        # Below the panel: inside it, the legend covered the curves of the panels whose
+        # data fill the whole width (issue 26).
+        ax.legend(fontsize=6, loc="upper center", bbox_to_anchor=(0.5, -0.17), ncol=2,
+                  frameon=False, handlelength=1.5, columnspacing=1.0)
     for ax in axes.ravel()[len(panels):]:
         ax.axis("off")
     fig.suptitle(title or f"{data.name}: models ranked by cv_error (solid: fit on all "
@@ -446,3 +517,4 @@ def plot_models(data, comparison, path, title: str = "", max_panels: int = 6):
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+    return fig

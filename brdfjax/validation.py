@@ -103,12 +103,24 @@ class CrossValidation:
         return float(np.mean([f.held_error for f in ends])) if ends else float("nan")
 
     @property
+    def cv_folds(self) -> str:
+        """What ``cv_error`` averages, in words: on a 4-incidence run only the 2 interior
+        incidences are held out for it, so a reader should know how few folds it is."""
+        inner = [f.label for f in self.interior]
+        ends = [f.label for f in self.folds if not f.interior]
+        count = f"{len(inner)} interior fold{'s' if len(inner) != 1 else ''}"
+        text = f"mean held-out E of {count} ({', '.join(inner) or 'none'} deg)"
+        if ends:
+            text += f"; the end incidences {' and '.join(ends)} deg are extrapolation, not in it"
+        return text
+
+    @property
     def by_incidence(self) -> dict:
         """Held-out E of every fold by its label."""
         return {f.label: f.held_error for f in self.folds}
 
     def to_dict(self) -> dict:
-        return {"model": self.model, "cv_error": self.cv_error,
+        return {"model": self.model, "cv_error": self.cv_error, "cv_folds": self.cv_folds,
                 "extrapolation_error": self.extrapolation_error,
                 "cv_by_incidence": self.by_incidence,
                 "folds": [f.to_dict() for f in self.folds]}
@@ -116,7 +128,7 @@ class CrossValidation:
     def table(self) -> str:
         """A readable table of the folds."""
         lines = [(f"cross-validation by incidence ({self.model}): cv_error = "
-                 f"{100 * self.cv_error:.4g} % (mean held-out E of the interior folds)"),
+                 f"{100 * self.cv_error:.4g} % ({self.cv_folds})"),
                  (f"  {'held out (deg)':>15} {'train E (%)':>12} {'held-out E (%)':>15} "
                  f"{'ratio':>8}")]
         for f in self.folds:

@@ -76,7 +76,9 @@ def models_markdown() -> str:
 def cli_markdown() -> str:
     from brdfjax.cli import build_parser
 
-    os.environ["COLUMNS"] = "100"  # argparse wraps help text to the terminal's width
+    # argparse wraps help text to the terminal's width: 80 columns fit the page's code
+    # block at 1280 px (100 ran past its right edge); narrower screens wrap (extra.css).
+    os.environ["COLUMNS"] = "80"
     sections = []
     for path, parser in commands(build_parser(), ["brdfjax"]):
         sections.append(f"## `{' '.join(path)}`\n\n```text\n{parser.format_help()}```\n")

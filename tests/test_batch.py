@@ -381,3 +381,23 @@ def test_model_auto_picks_the_model_that_made_the_data_for_every_sample(tmp_path
     table = rows(out.read_text())
     assert [r["model"] for r in table] == ["ggx", "ggx"]
     assert all(float(r["error"]) < 1e-12 and "alpha" in r for r in table)
+
+
+def test_the_csv_flags_parameters_at_a_bound_and_poor_incidences(tmp_path, capsys):
+    """Real EC1 with the paper's model: kb sits at its lower bound and E at 10, 30 and 50 deg
+    is 16-18 % against 1.7 % overall, all hidden behind 'converged' before. The row says so,
+    with the names and degrees `fit` prints."""
+    from brdfjax.cli import main
+
+    ec1 = RAW / "ANOPLATE_AnoBlack_EC1_Alum6061_v1o0_20251115.xls"
+    out = tmp_path / "results.csv"
+    assert main(["batch", str(ec1), "--out", str(out)]) == 0
+    capsys.readouterr()
+    (row,) = rows(out.read_text())
+    assert row["status"] == "converged"
+    assert row["at_bound"] == "kb"
+    assert row["poor_incidences"] == "10 30 50"
+    assert main(["fit", str(ec1), "--uncertainty", "none"]) == 0
+    printed = capsys.readouterr().out
+    assert "kb =          1e-14   (at a bound)" in printed
+    assert "E exceeds 3x the overall 1.7 % at 10 deg (17.7 %), 30 deg (17 %), 50 deg" in printed

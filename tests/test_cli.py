@@ -158,6 +158,22 @@ def test_an_extreme_value_is_refused_before_the_fit_with_no_raw_warning(tmp_path
     assert "Warning" not in captured.err
 
 
+@pytest.mark.parametrize("model", ["five", "auto"])
+def test_a_bad_predict_geometry_is_refused_before_any_fit(tmp_path, capsys, model):
+    """--predict's file is read and checked with the inputs, before any fitting: nothing is
+    printed (no model choice, no fit summary) and the error names the file and its line."""
+    geometry = tmp_path / "geometry.csv"
+    geometry.write_text("theta_i,theta_r,phi_r\n10,20,0\n10,95,180\n")
+    code = main(["fit", str(DATA / "synthetic" / "white_paint.csv"), "--model", model,
+                 "--uncertainty", "none", "--predict", str(geometry),
+                 "--predict-out", str(tmp_path / "pred.csv")])
+    assert code == 1
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert captured.err.startswith(f"brdfjax fit: error: {geometry}:3: ")
+    assert not (tmp_path / "pred.csv").exists()
+
+
 def test_mcmc_without_emcee_is_one_clear_error_before_the_fit(tmp_path, capsys, monkeypatch):
     import sys
 

@@ -171,6 +171,25 @@ def test_rt300s_not_an_excel_file(tmp_path):
         rt300s.read(fake, blank=fake.with_name("blank_x.xls"))
 
 
+def test_rt300s_format_errors_come_before_the_missing_blank(tmp_path):
+    """A file that is not an RT-300S export, alone in its folder, says what is wrong with it,
+    not that no blank_*.xls lies next to it (which would send the user looking for one)."""
+    renamed = tmp_path / "scan.xls"
+    renamed.write_text("theta_i,theta_r,phi_r,brdf\n10,0,0,0.2\n")
+    with pytest.raises(DataError, match="not a readable .xls workbook") as error:
+        rt300s.read(renamed)
+    assert "blank" not in str(error.value)
+    # A real workbook whose first column is not labelled as the RT-300S labels it (the
+    # "Azimuth" label of a real run overwritten, as in any other spreadsheet).
+    raw = (UAZ / "raw" / "NiTE_on_invar_v1o0A_20250915.xls").read_bytes()
+    assert raw.count(b"Azimuth") == 1
+    other = tmp_path / "budget.xls"
+    other.write_bytes(raw.replace(b"Azimuth", b"Quarter"))
+    with pytest.raises(DataError, match=r"has no row labelled Azimuth in column A") as error:
+        load(other)
+    assert "blank" not in str(error.value)
+
+
 def test_rt300s_scan_without_in_plane_rows():
     scan = rt300s.Scan(np.array([0.0, 10.0]), np.array([10.0, 10.0]), np.array([5.0, 5.0]),
                        np.array([0.1, 0.1]), ("Sheet1!B", "Sheet1!C"))

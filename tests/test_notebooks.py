@@ -6,6 +6,8 @@ text states; each check below asserts one statement with the tolerance its words
 """
 
 import json
+import re
+import tomllib
 from pathlib import Path
 
 import nbformat
@@ -13,7 +15,33 @@ import numpy as np
 import pytest
 from nbclient import NotebookClient
 
-NOTEBOOKS = sorted((Path(__file__).resolve().parents[1] / "notebooks").glob("*.ipynb"))
+REPO = Path(__file__).resolve().parents[1]
+NOTEBOOKS = sorted((REPO / "notebooks").glob("*.ipynb"))
+
+# The optional packages a notebook may pull in (through brdfjax or directly): module -> the
+# distribution that provides it. After each notebook has run, every one of them that its
+# kernel imported must be installed by the `docs` extra, which `make docs` installs to run
+# the notebooks (issue 26: `make docs` on a fresh clone failed on `import serial`).
+# (scipy is not among them: jax itself requires it.)
+OPTIONAL_MODULES = {"emcee": "emcee", "corner": "corner", "h5py": "h5py", "serial": "pyserial",
+                    "dask": "dask", "distributed": "dask"}
+
+
+def extra_requirements(extra: str) -> set[str]:
+    """The distributions an extra of pyproject.toml installs, ``brdfjax[...]`` followed."""
+    extras = tomllib.loads((REPO / "pyproject.toml").read_text())["project"][
+        "optional-dependencies"]
+    found, todo, seen = set(), [extra], set()
+    while todo:
+        name = todo.pop()
+        seen.add(name)
+        for requirement in extras[name]:
+            inner = re.fullmatch(r"brdfjax\[([\w,\s-]+)\]", requirement.strip())
+            if inner:
+                todo += [e.strip() for e in inner.group(1).split(",") if e.strip() not in seen]
+            else:
+                found.add(re.match(r"[A-Za-z0-9_.-]+", requirement).group().lower())
+    return found
 
 PROBES = {
     "paper": """{
@@ -41,6 +69,7 @@ PROBES = {
         "status": [r.status for r in results]}""",
     "instrument": """{"inside": [bool(x) for x in inside], "status": uncertainty.status}""",
     "models": """{"train": train_e, "held": held_e, "best": best, "wins": int(wins),
+        "table": rows, "runs": names,
         "ptfe_bins": len(bins), "ptfe_points": len(ptfe),
         "ptfe": {m: [cv.cv_error, cv.extrapolation_error] for m, cv in ptfe_cv.items()}}""",
 }
@@ -100,6 +129,10 @@ def check_instrument(found):
 
 def check_models(found):
     train, held, best = found["train"], found["held"], found["best"]
+    # The table names every run in full (it cut "white paint (syn"), one row per model, as
+    # a Markdown table the docs render (a printed one wrapped there).
+    header = [cell.strip() for cell in found["table"][0].strip("|").split("|")]
+    assert header == ["model", *found["runs"]] and len(found["table"]) == 2 + len(train)
     # "On the synthetic white paint the five-parameter model is the truth and wins"
     assert best["white paint (synthetic)"] == "five"
     # "GGX predicts the held-out incidence of the NiTE coating more than ten times better
@@ -135,6 +168,14 @@ CHECKS = {"paper": check_paper, "uncertainty": check_uncertainty,
           "models": check_models}
 
 
+def test_the_docs_extra_installs_what_the_notebooks_need():
+    """The notebooks run the sampler (emcee, corner; h5py for its chain file) and the
+    instrument (pyserial): `make docs` runs them with the docs extra alone."""
+    assert {"emcee", "corner", "h5py", "pyserial", "ipykernel", "mkdocs-jupyter"} <= \
+        extra_requirements("docs")
+    assert extra_requirements("docs") <= extra_requirements("test")  # the site test builds it
+
+
 def test_every_notebook_has_a_probe():
     assert {p.stem for p in NOTEBOOKS} == set(PROBES) == set(CHECKS)
 
@@ -144,9 +185,17 @@ def test_notebook_runs_and_states_its_numbers(path):
     notebook = nbformat.read(path, as_version=4)
     probe = f"import json as _json\nprint(_json.dumps({PROBES[path.stem]}))"
     notebook.cells.append(nbformat.v4.new_code_cell(probe))
+    notebook.cells.append(nbformat.v4.new_code_cell(
+        f"import sys as _sys\nprint(_json.dumps(sorted(set({sorted(OPTIONAL_MODULES)!r}) "
+        "& set(_sys.modules))))"))
     NotebookClient(notebook, timeout=300, kernel_name="python3",
                    resources={"metadata": {"path": str(path.parent)}}).execute()
-    output = "".join(o.get("text", "") for o in notebook.cells[-1].outputs)
+    output = "".join(o.get("text", "") for o in notebook.cells[-2].outputs)
     found = json.loads(output)
+    imported = json.loads("".join(o.get("text", "") for o in notebook.cells[-1].outputs))
+    needed = {OPTIONAL_MODULES[m] for m in imported}
+    assert needed <= extra_requirements("docs"), (
+        f"{path.name} imports {sorted(needed - extra_requirements('docs'))}, which the docs "
+        "extra (make docs) does not install")
     print(path.stem, found)
     CHECKS[path.stem](found)

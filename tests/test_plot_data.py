@@ -41,3 +41,58 @@ def test_hemisphere_and_spectral_figures(tmp_path):
     records.append({"wavelength_nm": 1064, "params": {"kb": 0.5, "b": -15.0}})
     plot_spectral(records, tmp_path / "s.png", ["kb", "b"])
     assert is_png(tmp_path / "h.png") and is_png(tmp_path / "s.png")
+
+
+def test_the_hemisphere_draws_the_peak_at_its_height(tmp_path):
+    """demo_hemisphere.png drew white paint's 10 deg back-scatter peak at about 4.5 against
+    5.97 (brdfjax eval): its grid missed the peak's direction and the surface skipped rows.
+    The drawn surface now holds the peak exactly."""
+    import brdfjax
+    from brdfjax.model import PAPER_SAMPLES
+
+    params = PAPER_SAMPLES["white_paint"]
+    peaks = plot_hemisphere(params, [10, 30, 60], tmp_path / "h.png")
+    for incidence, drawn in peaks.items():
+        exact = float(brdfjax.projected_brdf(params, np.radians(incidence),
+                                             np.radians(incidence), 0.0))
+        assert drawn == pytest.approx(exact, rel=1e-12)
+    assert peaks[10.0] == pytest.approx(5.9713, rel=1e-4)
+    assert is_png(tmp_path / "h.png")
+
+
+def test_fit_curves_pass_through_the_peaks_and_bands_are_named_not_faint(tmp_path):
+    """The in-plane curves hold the back-scatter and specular directions (the white paint's
+    peaks were drawn up to 5 % low between grid points), and the shaded bands are named in
+    the legend, strongest first, instead of "(lighter)" in one title and "(darker)" in
+    another."""
+    import brdfjax
+    from brdfjax.model import PAPER_SAMPLES
+    from brdfjax.plot import curve_angles, plot_fit
+
+    params = PAPER_SAMPLES["white_paint"]
+    for incidence in (10.0, 21.0, 52.0, 60.0):
+        angles, signed = curve_angles(incidence)
+        assert signed.size == 361 and np.all(np.diff(signed) > 0)
+        assert {-incidence, incidence} <= set(signed)
+        curve = np.asarray(brdfjax.projected_brdf(params, *angles))
+        peak = float(brdfjax.projected_brdf(params, np.radians(incidence),
+                                            np.radians(incidence), 0.0))
+        assert curve.max() == pytest.approx(peak, rel=1e-12)
+
+    data = load(REPO / "data" / "synthetic" / "white_paint.csv").at_incidences([10, 60])
+    bands, predictive = {}, {}
+    for incidence in (10.0, 60.0):
+        angles, signed = curve_angles(incidence)
+        curve = np.asarray(brdfjax.projected_brdf(params, *angles))
+        bands[incidence] = (signed, 0.98 * curve, 1.02 * curve, 0.96 * curve, 1.04 * curve)
+        predictive[incidence] = (signed, 0.9 * curve, 1.1 * curve, 0.8 * curve, 1.2 * curve)
+    figure = plot_fit(data, params, tmp_path / "fit.png", bands=bands, predictive=predictive)
+    (ax,) = figure.axes
+    legend = {t.get_text(): h for t, h in zip(ax.get_legend().get_texts(),
+                                               ax.get_legend().legend_handles)}
+    alpha = [legend[k].get_alpha() for k in ("68 % band of the fitted curve",
+                                             "95 % band of the fitted curve",
+                                             "95 % predictive band (a new measurement)")]
+    assert alpha == sorted(alpha, reverse=True) and alpha[1] >= 0.2  # visible, not faint
+    assert not any(word in ax.get_title() for word in ("lighter", "darker"))
+    assert is_png(tmp_path / "fit.png")

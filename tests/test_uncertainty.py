@@ -500,3 +500,32 @@ def test_measurements_without_information_are_refused():
     grazing = Measurements.from_degrees([30.0], [90.0], [0.0], [0.1])
     with pytest.raises(ValueError, match="no measurement"):
         build_posterior(grazing)
+
+
+def test_the_table_and_json_say_which_estimate_the_intervals_are_about(white_fit,
+                                                                     white_laplace):
+    """In Python too (table() with no arguments), the fit stands beside the posterior median,
+    a fitted value outside its interval is marked, and the table and the JSON say which of
+    the two the intervals are about and which to report (issue 26: b's interval
+    [-61.3, -57.3] beside a fitted b of -64.9, unexplained)."""
+    np.testing.assert_array_equal(white_laplace.fitted, white_fit.vector)
+    table = white_laplace.table()
+    assert table == white_laplace.table(fitted=white_fit.vector, loss=white_fit.loss)
+    assert "fit (Eq. 6)" in table
+    assert "report: the posterior median with its intervals" in table
+    record = white_laplace.to_dict()
+    assert "intervals are about the posterior median" in record["about"]
+    outside = [name for k, name in enumerate(white_fit.model.names)
+               if not white_laplace.ci95[k][0] <= white_fit.vector[k]
+               <= white_laplace.ci95[k][1]]
+    assert record["fit_outside_ci95"] == outside
+    for name in outside:
+        row = next(line for line in table.splitlines() if line.split()[:1] == [name])
+        assert "*" in row
+
+
+def test_mcmc_keeps_the_fit_it_started_from(white_fit, white_mcmc):
+    """emcee's result, like Laplace's, carries the fit, so its table shows the fit column."""
+    np.testing.assert_array_equal(white_mcmc.fitted, white_fit.vector)
+    assert "fit (Eq. 6)" in white_mcmc.table()
+    assert white_mcmc.to_dict()["fit_outside_ci95"] == white_mcmc.fit_outside()

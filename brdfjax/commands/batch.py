@@ -1,7 +1,9 @@
 """The ``batch`` command: refit a whole catalogue, resumably, here or on a Dask cluster.
 
 Results go to one CSV row per input file (``file``, one column per parameter of the model,
-``error, status, message, model``; E as a fraction). After every chunk the whole CSV is rewritten through a
+``error, status, message, model, at_bound, poor_incidences``; E as a fraction; the last two
+flag what `fit` warns of: parameters at a bound, and incidences whose E exceeds 3x the
+overall E). After every chunk the whole CSV is rewritten through a
 temporary file and moved into place, so it always holds every finished sample and never a
 half-written row. Rerunning the same command skips the files already in it: an
 interrupted batch (Ctrl-C, a crash, a killed job) resumes where it stopped, and the final
@@ -14,6 +16,7 @@ from __future__ import annotations
 import csv
 import glob
 import io
+import math
 import os
 import sys
 from pathlib import Path
@@ -149,7 +152,7 @@ def columns_of(names, uncertainty: bool, spectral: bool = False) -> tuple:
     """The CSV columns for a model's parameter ``names``, with or without uncertainty, and
     with a ``wavelength_nm`` column when every wavelength is its own sample."""
     columns = ("file", *(("wavelength_nm",) if spectral else ()), *names, "error", "status",
-               "message", "model")
+               "message", "model", "at_bound", "poor_incidences")
     if uncertainty:
         columns += (*(f"std_{name}" for name in names), "uncertainty_status")
     return columns
@@ -172,11 +175,21 @@ def split_key(key: str) -> tuple[str, float | None]:
 
 
 def row(key: str, result: dict, columns, model: str) -> dict:
-    """A CSV row from a `brdfjax.fitting.FitResult.to_dict` (numbers as exact reprs)."""
+    """A CSV row from a `brdfjax.fitting.FitResult.to_dict` (numbers as exact reprs).
+
+    ``at_bound`` names the parameters at a bound of the box and ``poor_incidences`` the
+    incidences (deg) whose E exceeds 3x the overall E, space-separated: what `fit` flags.
+    """
+    from brdfjax.commands.fitting import poor_incidences
+
     file, wavelength = split_key(key)
+    errors = {float(k): v for k, v in result.get("error_by_incidence", {}).items()}
+    poor = poor_incidences(errors, result["error"]) if math.isfinite(result["error"]) else []
     values = {"file": file, **{k: repr(float(v)) for k, v in result["params"].items()},
               "error": repr(float(result["error"])), "status": result["status"],
-              "message": result["message"], "model": model}
+              "message": result["message"], "model": model,
+              "at_bound": " ".join(result.get("at_bounds", ())),
+              "poor_incidences": " ".join(f"{deg:g}" for deg in poor)}
     if "wavelength_nm" in columns:
         values["wavelength_nm"] = "" if wavelength is None else f"{wavelength:g}"
     if "uncertainty_status" in columns:

@@ -29,6 +29,7 @@ REFLECTANCE_INCIDENCES = tuple(range(0, 90, 10))
 SUMMARY_INCIDENCES = (0.0, 30.0, 60.0)
 # An incidence whose E exceeds the overall E by more than this factor gets a warning.
 INCIDENCE_WARNING = 3.0
+POOR_SHOWN = 6  # poor incidences named in fit's warning (scattered sets may have many)
 FILE_HELP = ("the measurement file: brdfjax .csv, NIST PTFE .csv, ASTM E1392 .astm, J&C "
              "RT-300S .xls or Zemax .bsdf")
 SEED_HELP = ("seeds the genetic search, the random starts and the uncertainty's draws: the "
@@ -178,6 +179,11 @@ def run_fit(args) -> None:
                     "--plot-corner": args.plot_corner, "--predict-out": args.predict_out,
                     "--chain": args.chain if args.uncertainty == "mcmc" else None})
     data = load(args.file, **reader_options(args))
+    geometry = None
+    if args.predict:  # read and checked like the output paths: before any fitting
+        from brdfjax.formats import load_geometry
+
+        geometry = load_geometry(args.predict, **reader_options(args))
     if args.model == "auto":
         args.model = choose_model(data, args.seed)
     result = fit(data, args.method, model=args.model, seed=args.seed, loss=args.loss,
@@ -192,7 +198,7 @@ def run_fit(args) -> None:
             write_atomically(args.json, json_text(result.to_dict()))
         written = f" (the result, status failed, is in {args.json})" if args.json else ""
         raise ValueError(f"{args.file}: the fit failed: {result.message}{written}")
-    calibration, prediction = (validate_and_predict(result, data, args)
+    calibration, prediction = (validate_and_predict(result, data, args, geometry)
                                if args.cv or args.predict or args.export else (None, None))
     uncertainty = estimate_uncertainty(result, data, args)
     if uncertainty is not None:
@@ -220,14 +226,16 @@ def choose_model(data, seed: int) -> str:
     return comparison.best.name
 
 
-def validate_and_predict(result, data, args):
+def validate_and_predict(result, data, args, geometry=None):
     """``--cv`` prints the cross-validation; ``--predict`` writes the predictive intervals.
+
+    ``geometry`` is the ``--predict`` file, read before the fit (`run_fit`).
 
     Returns:
         The conformal `brdfjax.prediction.Calibration` (for the plot's predictive bands and
         the JSON) and the `brdfjax.prediction.Prediction` (None without --predict).
     """
-    from brdfjax.formats import load_geometry, write_atomically
+    from brdfjax.formats import write_atomically
     from brdfjax.prediction import predict
 
     calibration, validation = calibrated(result, args)
@@ -237,8 +245,7 @@ def validate_and_predict(result, data, args):
             print(f"  with the discrepancy (model x learned correction): cv_error = "
                   f"{100 * calibration.corrected_cv_error:.4g} %")
     prediction = None
-    if args.predict:
-        geometry = load_geometry(args.predict, **reader_options(args))
+    if geometry is not None:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # printed below, with the rest
             prediction = predict(result, geometry, calibration)
@@ -345,10 +352,11 @@ def write_outputs(result, data, args, uncertainty=None, calibration=None,
     intervals and the reflectance's at `REFLECTANCE_INCIDENCES`), --plot draws its 68 % and
     95 % curve bands around the fitted curves (not where the approximation is
     untrustworthy: the reason is printed instead), and --plot-corner draws the posterior.
-    With a ``calibration`` (--cv or --predict), --plot also draws the lighter predictive
-    bands: where a new measurement falls (`brdfjax.prediction`), around the prediction
-    (dotted where the discrepancy corrects the model), and --json gains a "prediction"
-    entry (the calibration, the learned process, and the ``prediction``'s summary). Data that are not in the
+    With a ``calibration`` (--cv or --predict), --plot also draws the predictive bands
+    (the legend names each shade): where a new measurement falls (`brdfjax.prediction`),
+    around the prediction (dotted where the discrepancy corrects the model), and --json
+    gains a "prediction" entry (the calibration, the learned process, and the
+    ``prediction``'s summary). Data that are not in the
     plane of incidence are drawn as polar maps of data, model and residual.
     """
     from brdfjax.formats import json_text, replace_atomically, write_atomically
@@ -390,14 +398,14 @@ def write_outputs(result, data, args, uncertainty=None, calibration=None,
         predictive = (None if calibration is None else
                       predictive_bands(result, data.incidences_deg, calibration))
         kinds = " and ".join(name for name, shown in (
-            ("curve bands (darker)", bands), ("predictive bands (lighter)", predictive))
+            ("68/95 % curve bands", bands), ("95 % predictive bands", predictive))
             if shown)
         replace_atomically(args.plot, lambda path: plot_fit(
             data, result.vector, path, model=result.model,
             held_out=result.validation_incidences, log=args.log, bands=bands,
             predictive=predictive, errors=errors,
             title=f"{data.name}: {result.model.name} fit, E = {100 * result.error:.3g} %"
-                  + (f"; 68/95 % {kinds}" if kinds else "")))
+                  + (f"; {kinds}" if kinds else "")))
     if args.plot_3d:
         from brdfjax.plot import plot_hemisphere
 
@@ -474,6 +482,16 @@ def incidence_lines(errors: dict, result) -> list[str]:
     return lines
 
 
+def poor_incidences(errors: dict, overall: float) -> list[float]:
+    """The incidences (deg) whose E exceeds `INCIDENCE_WARNING` times the ``overall`` E.
+
+    Eq. (6) weighs the brightest incidences most, so a small overall E can hide a poor fit
+    at the others; `fit` warns of these and `batch` lists them (``poor_incidences``).
+    """
+    return sorted(float(deg) for deg, e in errors.items()
+                  if np.isfinite(e) and e > INCIDENCE_WARNING * overall)
+
+
 def summary(result, name: str) -> str:
     """A readable table of a `brdfjax.fitting.FitResult`, with the reflectance of Eq. (9)."""
     from brdfjax.bounds import to_unit
@@ -489,12 +507,15 @@ def summary(result, name: str) -> str:
     lines.append(f"  {'E':<{width}} = {100 * result.error:.4g} % on {len(result.residuals)} points "
                  f"(incidences {', '.join(f'{x:g}' for x in result.train_incidences)} deg)")
     lines += incidence_lines(result.error_by_incidence, result)
-    worst = max(result.error_by_incidence.items(), key=lambda item: item[1], default=None)
-    if worst is not None and worst[1] > INCIDENCE_WARNING * result.error:
-        lines.append(f"  warning: at {worst[0]:g} deg E = {100 * worst[1]:.3g} %, more than "
-                     f"{INCIDENCE_WARNING:g}x the overall {100 * result.error:.3g} %: the "
-                     "overall E hides a poor fit there (Eq. 6 is dominated by the brightest "
-                     "incidences; try another --model, or --loss balanced)")
+    poor = poor_incidences(result.error_by_incidence, result.error)
+    if poor:
+        shown = ", ".join(f"{deg:g} deg ({100 * result.error_by_incidence[deg]:.3g} %)"
+                          for deg in poor[:POOR_SHOWN])
+        more = f" and {len(poor) - POOR_SHOWN} more" if len(poor) > POOR_SHOWN else ""
+        lines.append(f"  warning: E exceeds {INCIDENCE_WARNING:g}x the overall "
+                     f"{100 * result.error:.3g} % at {shown}{more}: the overall E hides a "
+                     "poor fit there (Eq. 6 is dominated by the brightest incidences; try "
+                     "another --model, or --loss balanced)")
     if result.validation_error is not None:
         lines.append(f"  held out: E = {100 * result.validation_error:.4g} %")
         lines += incidence_lines(result.validation_by_incidence, result)

@@ -29,7 +29,8 @@ def register(subparsers) -> None:
     p.add_argument("--reference-reflectance", type=float, default=0.99, metavar="RHO",
                    help="hemispherical reflectance of the PTFE reference plate at the "
                         "wavelength (default 0.99)")
-    p.add_argument("--sample", default="sample", help="the sample's name, kept in the file")
+    p.add_argument("--sample", help="the sample's name, kept in the file (default: the name "
+                                    "of --out without its suffix: khaki.csv -> khaki)")
     p.add_argument("--baud", type=int, default=115200, help="line speed (default 115200)")
     p.add_argument("--timeout", type=float, default=1.0, metavar="SECONDS",
                    help="wait for a reply before resending (default 1)")
@@ -122,7 +123,7 @@ def run_measure(args) -> None:
     result = measure(args.port, plan, args.out, journal=args.journal,
                      reference_reflectance=args.reference_reflectance, baud=args.baud,
                      timeout=args.timeout, retries=args.retries,
-                     metadata={"sample": args.sample}, progress=not args.quiet)
+                     metadata={"sample": args.sample or Path(args.out).stem}, progress=not args.quiet)
     print(f"wrote {len(result.data)} points to {args.out} ({result.read_now} readings now, "
           f"{result.resumed} from the journal {result.journal}; {result.resends} commands "
           "resent)")

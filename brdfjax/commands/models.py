@@ -39,7 +39,8 @@ def run_models(args) -> None:
     names = [n.strip() for n in args.models.split(",")] if args.models else None
     comparison = compare_models(data, names, seed=args.seed, progress=True,
                                 discrepancy=args.discrepancy)
-    print(f"{data.name}: {len(data)} points, models ranked by cv_error")
+    print(f"{data.name}: {len(data)} points, models ranked by cv_error, the "
+          f"{comparison.best.validation.cv_folds}")
     print(comparison.table())
     if args.json:
         write_atomically(args.json, json_text(comparison.to_dict()))

@@ -85,11 +85,13 @@ def read(path, blank=None, keep_beam_crossing: bool = False,
     if is_blank_name(path):
         raise DataError("this is a blank (empty holder) measurement, not a sample", path,
                         hint="read the sample's file; its blank is subtracted from it")
+    # The sample's own format errors first: a file that is not an RT-300S export (another
+    # spreadsheet, a CSV renamed .xls) must say so, not ask for a blank it will never use.
+    sample = in_plane(read_scan(path), path)
     blank_path = Path(blank) if blank is not None else find_blank(path)
     if blank_path.resolve() == path.resolve():
         raise DataError("the sample and the blank are the same file", path,
                         hint="pass blank= the empty-holder measurement")
-    sample = in_plane(read_scan(path), path)
     reference, merged_blank = _average_repeats(in_plane(read_scan(blank_path), blank_path))
     rt_blank = _blank_readings(sample, reference, path, blank_path)
     crossing = np.abs(sample.receive + sample.incidence) <= BEAM_CROSSING_DEG + 1e-9

@@ -134,7 +134,8 @@ def measure(port: str, plan: Plan, out, *, journal=None, reference_reflectance: 
         journal: the journal file (default: ``out`` with the suffix ``.journal.jsonl``).
         reference_reflectance: ``rho_ref`` of the PTFE plate at the wavelength, Eq. (8).
         baud, timeout, retries: the driver's settings (`brdfjax.instrument.driver`).
-        metadata: extra ``key: value`` lines for the file (``sample`` names it).
+        metadata: extra ``key: value`` lines for the file (``sample`` names it; by default
+            the name of ``out`` without its suffix).
         progress: show a progress bar with an ETA (on stderr).
 
     Returns:
@@ -156,7 +157,7 @@ def measure(port: str, plan: Plan, out, *, journal=None, reference_reflectance: 
         resends = _acquire(port, plan, todo, record, baud=baud, timeout=timeout,
                            retries=retries, progress=progress) if todo else 0
         data = to_measurements(plan, record.readings, reference_reflectance, {
-            "sample": "sample", **(metadata or {}),
+            "sample": Path(out).stem, **(metadata or {}),
             "wavelength_nm": f"{record.instrument.get('wavelength_nm', math.nan):g}",
             "instrument": " ".join(str(record.instrument.get(k, "?"))
                                    for k in ("model", "serial", "firmware")),
