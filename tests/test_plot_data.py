@@ -85,7 +85,8 @@ def test_fit_curves_pass_through_the_peaks_and_bands_are_named_not_faint(tmp_pat
         angles, signed = curve_angles(incidence)
         curve = np.asarray(brdfjax.projected_brdf(params, *angles))
         bands[incidence] = (signed, 0.98 * curve, 1.02 * curve, 0.96 * curve, 1.04 * curve)
-        predictive[incidence] = (signed, 0.9 * curve, 1.1 * curve, 0.8 * curve, 1.2 * curve)
+        predictive[incidence] = (signed, curve, 0.9 * curve, 1.1 * curve, 0.8 * curve,
+                                 1.2 * curve)
     figure = plot_fit(data, params, tmp_path / "fit.png", bands=bands, predictive=predictive)
     (ax,) = figure.axes
     legend = {t.get_text(): h for t, h in zip(ax.get_legend().get_texts(),
