@@ -335,6 +335,33 @@ def test_a_rerun_never_reads_its_own_outputs_and_draws_one_bar(tmp_path, capsys)
         expand([str(out)], outputs=[str(out)])
 
 
+def test_a_rerun_with_other_options_refuses_and_keeps_the_rows(tmp_path, capsys):
+    """Rows fitted with one seed and box are never passed off as another run's: a rerun
+    with ``--seed 5 --bound b=-10:10`` (which once said "already done" and kept b = 32.9)
+    fails, naming both changes, and leaves the CSV as it was; the same options (a default
+    spelled out included) resume; with the CSV deleted the new options fit afresh."""
+    from brdfjax.cli import main
+
+    for seed in range(2):
+        save(synthetic(seed, points=40), tmp_path / f"sample_{seed}.csv")
+    out = tmp_path / "results.csv"
+    command = ["batch", str(tmp_path), "--out", str(out), *CLI_SMALL]
+    assert main(command) == 0
+    written = out.read_text()
+    capsys.readouterr()
+    assert main([*command, "--seed", "5", "--bound", "b=-10:10"]) == 1
+    said = capsys.readouterr().err
+    assert "fitted with other options" in said and "seed: 0 there, 5 here" in said, said
+    assert "bounds b: -150:80 there, -10:10 here" in said, said
+    assert "already done" not in said and out.read_text() == written
+    assert main([*command, "--model", "ggx"]) == 1  # another model: other columns too
+    assert main([*command, "--seed", "0"]) == 0  # the default, spelled out
+    assert "2 of 2 inputs already done" in capsys.readouterr().err
+    out.unlink()
+    assert main([*command, "--seed", "5", "--bound", "b=-10:10"]) == 0
+    assert all(-10 <= float(r["b"]) <= 10 for r in rows(out.read_text()))
+
+
 def test_every_wavelength_is_a_sample_with_its_own_row(tmp_path, capsys):
     """NIST PTFE at two of its wavelengths: one row each, a wavelength_nm column, the Lambert
     kd equal to its closed form sum(f cos^2) / sum(cos^2), a resume with nothing to do, and

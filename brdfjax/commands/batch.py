@@ -6,7 +6,9 @@ temporary file and moved into place, so it always holds every finished sample an
 half-written row. Rerunning the same command skips the files already in it: an
 interrupted batch (Ctrl-C, a crash, a killed job) resumes where it stopped, and the final
 file is the same as an uninterrupted run's, rows in input order. Delete a row (or the
-file) to refit it.
+file) to refit it. The options that change results (model, seed, bounds, search settings,
+uncertainty, reader options) are kept beside the CSV in ``OUT.options.json``; a rerun with
+other options refuses, naming what changed, instead of keeping rows fitted otherwise.
 """
 
 from __future__ import annotations
@@ -132,6 +134,85 @@ def read_results(path, columns) -> dict:
         return {sample_key(row["file"], row.get("wavelength_nm")): row for row in reader}
 
 
+def result_options(args, model) -> dict:
+    """Every option that changes a batch's numbers, as plain data: what a resume must match.
+
+    The search settings are resolved to the values the fit uses (an option given equal to
+    its default is the same run as one left out), and the bounds to the whole box of the
+    model (so ``--bound b=-150:80`` equals the default box it spells out). ``--chunk-size``
+    and ``--scheduler`` are left out: they change where and how samples are grouped, not
+    their results (`brdfjax.batch.fit_batch`).
+    """
+    from brdfjax.batch import FIT_DEFAULTS
+    from brdfjax.bounds import make_bounds
+    from brdfjax.commands.fitting import parse_bounds
+
+    box = make_bounds(parse_bounds(args.bound), model=model)
+    return {"model": model.name, "seed": args.seed,
+            "bounds": {name: [float(low), float(high)]
+                       for name, low, high in zip(model.names, box.lower, box.upper)},
+            **{name: (getattr(args, name) if getattr(args, name) is not None
+                      else FIT_DEFAULTS[name]) for name in SEARCH_OPTIONS},
+            "uncertainty": args.uncertainty,
+            "reader": {k: (str(v) if k == "blank" else v)
+                       for k, v in reader_options(args).items()},
+            "wavelength": args.wavelength}
+
+
+def options_path(out) -> Path:
+    """Where the options of the run that wrote ``out`` are kept: ``OUT.options.json``."""
+    return Path(f"{out}.options.json")
+
+
+def check_options(out, rows: dict, settings: dict) -> None:
+    """Refuse to resume ``out`` when its rows were fitted with other options.
+
+    Rows fitted with another seed, box, model or search would otherwise be kept as if they
+    were this run's (a rerun with ``--seed 5 --bound b=-10:10`` once kept rows with b =
+    32.9). With no rows there is nothing to protect and the run starts afresh.
+    """
+    import json
+
+    if not rows:
+        return
+    path = options_path(out)
+    try:
+        stored = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        raise ValueError(f"{out}: has {len(rows)} rows but no readable record of the options "
+                         f"that fitted them ({path}); give another --out, or delete {out} "
+                         "to refit every input") from None
+    changed = []
+    for name, value in settings.items():
+        before = stored.get(name)
+        if isinstance(value, dict) and isinstance(before, dict):  # say which entries
+            changed += [f"{name} {key}: {_shown(before.get(key))} there, "
+                        f"{_shown(value.get(key))} here"
+                        for key in dict.fromkeys([*before, *value])
+                        if before.get(key) != value.get(key)]
+        elif before != value:
+            changed.append(f"{name}: {_shown(before)} there, {_shown(value)} here")
+    if changed:
+        raise ValueError(f"{out}: its {len(rows)} rows were fitted with other options "
+                         f"({'; '.join(changed)}); give another --out, or delete {out} "
+                         "to refit every input with these")
+
+
+def _shown(value) -> str:
+    if isinstance(value, list):
+        return ":".join(f"{v:g}" if isinstance(v, float) else str(v) for v in value)
+    return "none" if value is None else str(value)
+
+
+def write_options(out, settings: dict) -> None:
+    """Keep ``settings`` beside ``out`` (`options_path`), for `check_options` on a rerun."""
+    import json
+
+    from brdfjax.formats import write_atomically
+
+    write_atomically(options_path(out), json.dumps(settings, indent=1) + "\n")
+
+
 def write_results(path, rows: dict, order, columns) -> None:
     """Rewrite the results CSV atomically: rows in input order, then any others."""
     from brdfjax.formats import write_atomically
@@ -219,6 +300,8 @@ def run_batch(args) -> int:
         clash = next(n for n in names if names.count(n) > 1)
         raise ValueError(f"--json: two inputs are named {clash!r}; give them separate runs")
     rows = read_results(args.out, columns)
+    settings = result_options(args, model)
+    check_options(args.out, rows, settings)
     pending = [f for f in files if f not in rows]
     options = {"seed": args.seed, "ranges": parse_bounds(args.bound), "model": model.name,
                "chunk_size": args.chunk_size, "uncertainty": args.uncertainty,
@@ -231,6 +314,7 @@ def run_batch(args) -> int:
               file=sys.stderr)
     if not pending:
         return _summary(rows, files, [])
+    write_options(args.out, settings)  # before the first row, so no row lacks its key
     if devices:  # said before the bar opens, so it is not drawn through it
         print(f"fitting on {len(devices)} {devices[0].platform} device(s)", file=sys.stderr)
 
