@@ -15,6 +15,7 @@ import importlib
 import os
 import sys
 import threading
+import time
 import warnings
 
 # Each module defines ``register(subparsers)``, adding its commands with a ``run`` default.
@@ -34,9 +35,14 @@ def build_parser() -> argparse.ArgumentParser:
                     "by default; torrance-sparrow, ggx, beckmann, lambert, rpv) to measured "
                     "BRDF data, cross-validate them and predict new geometry.")
     parser.add_argument("--version", action="version", version="brdfjax 0.1.0")
+    verbose = "say how long each compiled stage took to trace, lower and compile (stderr)"
+    parser.add_argument("-v", "--verbose", "--profile", action="store_true", help=verbose)
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in COMMAND_MODULES:
         importlib.import_module(name).register(subparsers)
+    for command in subparsers.choices.values():  # also after the command: brdfjax fit -v
+        command.add_argument("-v", "--verbose", "--profile", action="store_true",
+                             default=argparse.SUPPRESS, help=verbose)
     return parser
 
 
@@ -86,7 +92,24 @@ def main(argv=None) -> int:
 
 
 def _run(args) -> int:
-    """The command of ``args``, user errors turned into a line and exit code 1."""
+    """The command of ``args``, user errors turned into a line and exit code 1; at ``-v``
+    with each compilation's time (`brdfjax.cache.report_compiles`) and their sum."""
+    if not args.verbose:
+        return _run_quietly(args)
+    from brdfjax.cache import compile_seconds, report_compiles
+
+    report_compiles()
+    tic = time.perf_counter()
+    try:
+        return _run_quietly(args)
+    finally:
+        report_compiles(on=False)
+        spent = ", ".join(f"{step} {seconds:.2f} s" for step, seconds in compile_seconds.items())
+        print(f"compile: in all {spent or 'nothing compiled'}; the command took "
+              f"{time.perf_counter() - tic:.2f} s", file=sys.stderr)
+
+
+def _run_quietly(args) -> int:
     from brdfjax.measurements import DataError
     from brdfjax.optional import MissingDependency
 

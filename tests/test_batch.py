@@ -362,6 +362,29 @@ def test_a_rerun_with_other_options_refuses_and_keeps_the_rows(tmp_path, capsys)
     assert all(-10 <= float(r["b"]) <= 10 for r in rows(out.read_text()))
 
 
+def test_verbose_says_which_stage_compiled_for_how_long(tmp_path, monkeypatch, capsys):
+    """``-v`` (before or after the command) times every compilation: a line per stage and
+    step, and the sums at the end; without it, no such line."""
+    from brdfjax.cli import main
+
+    monkeypatch.setenv("BRDFJAX_CACHE", str(tmp_path / "cache"))
+    save(synthetic(0, points=40), tmp_path / "sample.csv")
+    command = ["batch", str(tmp_path / "sample.csv"), "--out", str(tmp_path / "out.csv"),
+               *CLI_SMALL, "--population-size=48"]  # a shape no other test compiles
+    assert main(["-v", *command]) == 0
+    said = capsys.readouterr().err
+    assert "compile: _fit_chunk stage traced and exported in" in said, said
+    assert "compile: _fit_chunk compiled by XLA in" in said, said
+    assert "compile: in all traced" in said and "compiled" in said.splitlines()[-1]
+    (tmp_path / "out.csv").unlink()
+    assert main([*command, "--verbose"]) == 0  # compiled already in this process
+    said = capsys.readouterr().err
+    assert "compile: in all nothing compiled" in said and "_fit_chunk" not in said, said
+    (tmp_path / "out.csv").unlink()
+    assert main(command) == 0
+    assert "compile:" not in capsys.readouterr().err
+
+
 def test_every_wavelength_is_a_sample_with_its_own_row(tmp_path, capsys):
     """NIST PTFE at two of its wavelengths: one row each, a wavelength_nm column, the Lambert
     kd equal to its closed form sum(f cos^2) / sum(cos^2), a resume with nothing to do, and

@@ -54,18 +54,18 @@ def test_ctrl_c_in_the_second_chunk_exits_130_with_an_intact_csv(environment, tm
     command = [sys.executable, "-m", "brdfjax.cli", "batch", str(RT300S / "raw"),
                str(RT300S / "raw_legacy_1deg"), "--model", "rpv", "--chunk-size", "3",
                *SMALL]
-    for attempt in range(3):
+    for attempt, delay in enumerate((0.1, 1.0, 3.0)):  # in a fit, and in a compile
         out = tmp_path / f"both_{attempt}.csv"
         process = start([*command, "--out", str(out)], environment)
         deadline = time.monotonic() + 600
         while not rows(out) and process.poll() is None:
             assert time.monotonic() < deadline, "no chunk written in 600 s"
             time.sleep(0.005)
-        time.sleep(0.2)  # into the second chunk
+        time.sleep(delay)  # into the second chunk, or the third (another shape)
         process.send_signal(signal.SIGINT)
         assert process.wait(timeout=60) == 130, f"attempt {attempt}: {process.returncode}"
         table = rows(out)
-        assert len(table) in (3, 6), len(table)  # whole chunks only
+        assert len(table) in (3, 6, 9), len(table)  # whole chunks only
         assert all(r["status"] in ("converged", "max_steps") and r["error"] for r in table)
 
 
