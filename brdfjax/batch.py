@@ -47,6 +47,7 @@ import inspect
 import os
 import time
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from functools import partial
 
 import jax
@@ -216,14 +217,24 @@ def _run_chunk(problems: list[Problem], seeds, bounds, config, devices, chunk_si
             *(padded_scene(problems[i].scene, points) for i in chosen))))
     config = EvolveConfig() if config is None else config
     block = lanes // len(devices)
-    running = []  # dispatched to every device before any result is awaited
     per_sample = (np.asarray(seeds)[chosen], targets, weights, None if shared else scene)
-    for number, device in enumerate(devices):
+
+    def dispatch(number: int):
+        device = devices[number]
         part = jax.tree.map(partial(_block, number=number, size=block), per_sample)
         seeds_, target, weight, scene_ = jax.device_put(part, device)
-        running.append(_fit_chunk(seeds_, jax.device_put(scene, device) if shared else scene_,
-                                  target, weight, *jax.device_put((bounds, config), device),
-                                  model, **settings))
+        return _fit_chunk(seeds_, jax.device_put(scene, device) if shared else scene_,
+                          target, weight, *jax.device_put((bounds, config), device),
+                          model, **settings)
+
+    # Dispatched to every device before any result is awaited. From threads: XLA compiles
+    # a new shape once per device, and so compiles for all devices at once (2 devices:
+    # 29 s + 23 s one after the other on a loaded 2-core machine).
+    if len(devices) == 1:
+        running = [dispatch(0)]
+    else:
+        with ThreadPoolExecutor(len(devices)) as pool:
+            running = list(pool.map(dispatch, range(len(devices))))
     return jax.tree.map(lambda *blocks: np.concatenate(blocks)[:count], *running)
 
 

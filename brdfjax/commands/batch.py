@@ -16,12 +16,15 @@ from __future__ import annotations
 import csv
 import glob
 import io
+import json
 import os
 import sys
 from pathlib import Path
 
 from brdfjax.commands import add_reader_options, check_writable, reader_options
 from brdfjax.formats import READABLE
+from brdfjax.formats.cube import SUFFIXES as CUBE_SUFFIXES
+from brdfjax.formats.cube import is_cube
 
 AUTO_SAMPLES = 8  # --model auto chooses on at most this many samples
 SEARCH_OPTIONS = {"population_size": "genetic-search population",
@@ -283,6 +286,8 @@ def run_batch(args) -> int:
         from brdfjax.cluster import require_dask
 
         require_dask()  # before any file is read
+    if any(is_cube(item) for item in args.inputs):
+        return run_cube(args)
     spectral = spectral_request(args.wavelength)
     files = expand(args.inputs, outputs=(args.out, args.json))
     if spectral is not None:
@@ -347,6 +352,84 @@ def run_batch(args) -> int:
     if args.plot:
         _plot_spectral(args.plot, [rows[key] for key in files if key in rows], model.names)
     return _summary(rows, files, lost)
+
+
+def run_cube(args) -> int:
+    """``brdfjax batch CUBE.h5 --out RESULTS.h5``: every sample of one HDF5 cube
+    (`brdfjax.formats.cube`), streamed a chunk at a time, journalled, resumable."""
+    import numpy as np
+    from tqdm import tqdm
+
+    from brdfjax.commands.fitting import parse_bounds
+    from brdfjax.formats.cube import Cube, CubeResults
+    from brdfjax.models import get
+
+    if len(args.inputs) != 1:
+        raise ValueError(f"{' '.join(args.inputs)}: give one cube (.h5) per run, alone")
+    if Path(args.out).suffix.lower() not in CUBE_SUFFIXES[:2]:
+        raise ValueError(f"--out {args.out}: the results of a cube go to an HDF5 file; "
+                         "give --out RESULTS.h5")
+    given = [f"--{name}" for name in ("json", "plot", "wavelength") if getattr(args, name)]
+    if given:
+        raise ValueError(f"{', '.join(given)}: not for a cube; its results file holds "
+                         "every sample")
+    if Path(args.inputs[0]).resolve() == Path(args.out).resolve():
+        raise ValueError(f"--out {args.out}: is the cube itself; give another file")
+    with Cube(args.inputs[0]) as cube:
+        devices = _local_devices() if args.scheduler is None else None
+        if args.model == "auto":
+            first = list(range(min(cube.count, AUTO_SAMPLES)))
+            samples = dict(zip(first, cube.read(first)))
+            chosen = choose_model(first, args, read=samples.__getitem__)
+        model = get(chosen if args.model == "auto" else args.model)
+        settings = result_options(args, model)
+        results = CubeResults(args.out, cube.count, model.names, settings)
+        stored = results.stored_settings()
+        if stored is not None and json.loads(stored) != json.loads(results.settings):
+            old = json.loads(stored)
+            changed = [f"{k}: {_shown(old.get(k))} there, {_shown(v)} here"
+                       for k, v in settings.items() if old.get(k) != v]
+            raise ValueError(f"{args.out}: was fitted with other options "
+                             f"({'; '.join(changed)}); give another --out, or delete it "
+                             f"(and {results.parts}) to refit")
+        done = results.done()
+        pending = np.flatnonzero(~done)
+        if done.any():
+            print(f"{args.out}: {int(done.sum())} of {cube.count} samples already done; "
+                  + (f"fitting the other {pending.size}" if pending.size
+                     else "nothing left to fit"), file=sys.stderr)
+        results.start()
+        options = {"seed": args.seed, "ranges": parse_bounds(args.bound),
+                   "model": model.name, "chunk_size": args.chunk_size,
+                   "uncertainty": args.uncertainty,
+                   **{k: getattr(args, k) for k in SEARCH_OPTIONS
+                      if getattr(args, k) is not None}}
+        blocks = [pending[i:i + args.chunk_size]
+                  for i in range(0, pending.size, args.chunk_size)]
+        if devices and blocks:
+            print(f"fitting {cube.count} samples of {cube.points} points on {len(devices)} "
+                  f"{devices[0].platform} device(s)", file=sys.stderr)
+        lost = []
+        with tqdm(total=int(pending.size), unit="sample", desc="brdfjax batch",
+                  file=sys.stderr, disable=not blocks) as progress:
+            chunks = ([(int(i), data) for i, data in zip(block, cube.read(block))]
+                      for block in blocks)
+
+            def record(batch: dict) -> None:
+                results.record(list(batch), list(batch.values()))
+                progress.update(len(batch))
+
+            lost = _fit_chunks(chunks, args.scheduler, options, record)
+        counts = results.assemble(cube.path, cube.names, uncertainty=bool(args.uncertainty)) \
+            if not lost else None
+    if lost:
+        raise ValueError(f"{len(lost)} chunk(s) failed on the cluster and were not recorded "
+                         f"(rerun to fit them): {'; '.join(lost)}")
+    print(f"{counts['converged'] + counts['max_steps']} of {cube.count} fitted"
+          + (f" ({counts['max_steps']} stopped at the LM step cap)" if counts["max_steps"]
+             else "") + (f"; {counts['failed']} failed (see message in {args.out})"
+                         if counts["failed"] else ""), file=sys.stderr)
+    return 1 if counts["failed"] else 0
 
 
 def spectral_request(text):
@@ -445,7 +528,7 @@ def read_sample(key: str, args):
     return load_spectral(file, [wavelength])[wavelength]
 
 
-def choose_model(keys, args) -> str:
+def choose_model(keys, args, read=None) -> str:
     """``--model auto`` of a batch: one model for every sample, the one with the lowest
     median cv_error over the first `AUTO_SAMPLES` samples that can be compared (one model
     keeps the CSV's columns, and the samples' parameters, comparable). Said on stderr."""
@@ -457,7 +540,8 @@ def choose_model(keys, args) -> str:
     errors, used, reasons = {}, 0, []
     for key in keys:
         try:
-            comparison = compare_models(read_sample(key, args), seed=args.seed)
+            data = read(key) if read is not None else read_sample(key, args)
+            comparison = compare_models(data, seed=args.seed)
         except (DataError, ValueError, OSError) as error:
             reasons.append(f"{key}: {error}")
             continue
