@@ -43,9 +43,13 @@ def register(subparsers) -> None:
                     "same command to resume an interrupted batch.")
     p.add_argument("inputs", nargs="+", metavar="INPUT",
                    help=f"files, directories (every {'/'.join(READABLE)} inside except "
-                        "RT-300S blank_*.xls) or glob patterns such as 'runs/*.xls'")
-    p.add_argument("--out", required=True, metavar="CSV",
-                   help="results file; files already in it are not refitted")
+                        "RT-300S blank_*.xls) or glob patterns such as 'runs/*.xls'; or "
+                        "one HDF5 cube of many samples (.h5, .hdf5, .nc: datasets theta_i, "
+                        "theta_r, phi_r in degrees, brdf (N, P) with NaN missing, optional "
+                        "sigma and sample; see brdfjax.formats.cube)")
+    p.add_argument("--out", required=True, metavar="CSV|H5",
+                   help="results file (CSV; for a cube, .h5); samples already in it are "
+                        "not refitted, and a rerun with other options refuses")
     p.add_argument("--json", metavar="DIR", help="also write each result as DIR/NAME.json")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="send chunks to this Dask scheduler (tcp://HOST:8786) "

@@ -108,9 +108,11 @@ class Cube:
 
     @property
     def shares_geometry(self) -> bool:
+        """Whether every sample has the same angles (all three datasets (P,))."""
         return len(self.shared) == len(ANGLES)
 
     def name(self, index: int) -> str:
+        """Sample ``index``'s name: from ``sample``, else ``FILE[index]``."""
         return self.names[index] if self.names else f"{self.path.name}[{index}]"
 
     def read(self, indices) -> list[Measurements]:
@@ -138,6 +140,7 @@ class Cube:
         return samples
 
     def close(self) -> None:
+        """Close the file."""
         self.file.close()
 
     def __enter__(self):
