@@ -158,7 +158,20 @@ def background(precompile, *args, **kwargs):
 _loaded: dict[Path, tuple | None] = {}
 
 
+_building: dict[Path, threading.Lock] = {}  # one per stage file being loaded or built
+_building_lock = threading.Lock()
+
+
 def _load(path: Path, build, name: str) -> tuple | None:
+    """`_load_once` of ``path``, one thread at a time (threads that need the same stage at
+    once, one per device or per model, trace it once and share it)."""
+    with _building_lock:
+        lock = _building.setdefault(path, threading.Lock())
+    with lock:
+        return _load_once(path, build, name)
+
+
+def _load_once(path: Path, build, name: str) -> tuple | None:
     """The compiled call of one stage file and its output structure, built if missing.
 
     None when the stage cannot be exported or written (the caller then runs plain jit).

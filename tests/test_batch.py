@@ -285,8 +285,9 @@ def test_split_over_two_devices_gives_the_same_results(reference, catalogue, env
                                                          tmp_path):
     out = tmp_path / "results.csv"
     env = {**environment, "XLA_FLAGS": "--xla_force_host_platform_device_count=2"}
-    done = subprocess.run(batch_command(catalogue, out), check=False, env=env,
-                          capture_output=True, text=True, timeout=280)
+    # 16 samples a chunk: a device per 8 samples (brdfjax.batch.SAMPLES_PER_DEVICE)
+    done = subprocess.run(batch_command(catalogue, out, "--chunk-size=16"), check=False,
+                          env=env, capture_output=True, text=True, timeout=280)
     assert "fitting on 2 cpu device(s)" in done.stderr, done.stderr
     assert out.read_text() == reference[0]
 
