@@ -189,10 +189,12 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
             compiling = background(polish_population.precompile, jax.ShapeDtypeStruct(
                 (population_size, model.size), np.float64), search, bounds, starts=starts,
                 max_steps=max_steps)
-        searched = evolve(seed, search, bounds, config, population_size=population_size,
-                          max_generations=max_generations)
-        if compiling is not None:
-            compiling.join()
+        try:
+            searched = evolve(seed, search, bounds, config, population_size=population_size,
+                              max_generations=max_generations)
+        finally:  # never left compiling: a process must not end with XLA busy in a thread
+            if compiling is not None:
+                compiling.join()
         searched.errors.block_until_ready()
         timings["evolve"] = time.perf_counter() - tic
         history, evaluations = search_summary(searched, population_size)
