@@ -56,3 +56,27 @@ def test_a_stage_is_written_once_and_falls_back_to_jit_where_it_cannot_be(tmp_pa
     blocked.write_text("not a directory: no stage can be written under it")
     monkeypatch.setattr(cache, "_directory", blocked)
     assert float(staged(3.0, power=2)) == 10.0
+
+
+def test_precompile_fills_the_caches_so_the_call_compiles_nothing(tmp_path, monkeypatch):
+    """A stage precompiled from shapes alone (as `brdfjax.fit` does for its polish while the
+    search compiles) is not compiled again by the real call, which gives plain jit's value."""
+    import jax
+    import numpy as np
+
+    events = []
+    jax.monitoring.register_event_duration_secs_listener(
+        lambda event, seconds, **meta: events.append((event, str(meta.get("fun_name")))))
+    staged = cache.stage(square_plus, static_argnames=("power",))
+    monkeypatch.setattr(cache, "_directory", tmp_path)
+    staged.precompile(jax.ShapeDtypeStruct((3, 2), np.float64), power=3)
+    compiled = [name for event, name in events if event.endswith("backend_compile_duration")]
+    assert any("square_plus" in name for name in compiled), compiled
+    events.clear()
+    values = np.arange(6.0).reshape(3, 2)
+    np.testing.assert_array_equal(staged(values, power=3), values**3 + 1.0)
+    again = [name for event, name in events if event.endswith("backend_compile_duration")
+             and "square_plus" in name]
+    assert again == [], again
+    monkeypatch.setattr(cache, "_directory", None)  # caches off: precompile does nothing
+    assert cache.background(staged.precompile, values, power=4) is None
