@@ -137,6 +137,11 @@ def test_a_rerun_with_other_options_is_refused(cube, reference, tmp_path, capsys
     assert "was fitted with other options (seed: 0 there, 5 here)" in said, said
     assert main(command(cube, out)[3:]) == 1  # the same: nothing to fit, the failure again
     assert f"{COUNT} of {COUNT} samples already done; nothing left" in capsys.readouterr().err
+    bigger = tmp_path / "bigger.h5"
+    write_cube(bigger, *geometry(), values(COUNT + 2))
+    assert main(command(bigger, out)[3:]) == 1  # another cube: its rows are not these
+    said = capsys.readouterr().err
+    assert f"samples: {COUNT} there, {COUNT + 2} here" in said and "cube: " in said, said
 
 
 @pytest.mark.parametrize(("change", "expected"), [

@@ -386,7 +386,10 @@ def run_cube(args) -> int:
             samples = dict(zip(first, cube.read(first)))
             chosen = choose_model(first, args, read=samples.__getitem__)
         model = get(chosen if args.model == "auto" else args.model)
-        settings = result_options(args, model)
+        # The cube's path and size too: results are by sample index, so another cube (or
+        # the same grown) must not take over this one's rows.
+        settings = {**result_options(args, model), "cube": str(cube.path.resolve()),
+                    "samples": cube.count}
         results = CubeResults(args.out, cube.count, model.names, settings)
         stored = results.stored_settings()
         if stored is not None and json.loads(stored) != json.loads(results.settings):
