@@ -16,11 +16,9 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
-import jax
 import numpy as np
 
 from brdfjax.bounds import Bounds, default_bounds, from_unit, to_free, to_unit
-from brdfjax.cache import background
 from brdfjax.evolve import EvolveConfig, EvolveResult, evolve
 from brdfjax.measurements import DataError, Measurements
 from brdfjax.model import FIVE
@@ -184,17 +182,8 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
 
     if method != "lm":
         tic = time.perf_counter()
-        compiling = None
-        if method == "hybrid":  # XLA compiles the polish while the search compiles
-            compiling = background(polish_population.precompile, jax.ShapeDtypeStruct(
-                (population_size, model.size), np.float64), search, bounds, starts=starts,
-                max_steps=max_steps)
-        try:
-            searched = evolve(seed, search, bounds, config, population_size=population_size,
-                              max_generations=max_generations)
-        finally:  # never left compiling: a process must not end with XLA busy in a thread
-            if compiling is not None:
-                compiling.join()
+        searched = evolve(seed, search, bounds, config, population_size=population_size,
+                          max_generations=max_generations)
         searched.errors.block_until_ready()
         timings["evolve"] = time.perf_counter() - tic
         history, evaluations = search_summary(searched, population_size)
@@ -205,9 +194,8 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
     else:
         tic = time.perf_counter()
         if method == "hybrid":
-            # host array: a device array would not match the precompiled (uncommitted) shape
-            polished = polish_population(np.asarray(searched.population), search, bounds,
-                                         starts=starts, max_steps=max_steps)
+            polished = polish_population(searched.population, search, bounds, starts=starts,
+                                         max_steps=max_steps)
             if search is not prob:  # the winner of the representative points, on every point
                 winner, _, screened = polish_summary(polished)
                 evaluations += screened * search.target.size // prob.target.size
