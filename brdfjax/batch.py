@@ -17,8 +17,8 @@ distinct good members), but as one compiled call per chunk of samples:
    sample count to a power of two (at most ``chunk_size``) and a multiple of the device
    count, with copies of its first sample whose results are dropped. Compilations are so
    bounded to one per (sample bucket, point bucket, shared geometry or not) and device
-   (XLA compiles for each device it runs on; a chunk smaller than the device count uses
-   only as many devices as it has samples).
+   (XLA compiles for each device it runs on, all devices at once; a chunk uses one device
+   per `SAMPLES_PER_DEVICE` samples at most, so a small chunk compiles once).
 4. Every sample is keyed by ``jax.random.key(seed)`` as `brdfjax.fitting.fit` keys it, so a
    batched fit follows the same search as the single fit of the same sample and ends at the
    same E (to 1e-9 relative, tested): both pad points to the same bucket, so they run the
@@ -47,6 +47,7 @@ import inspect
 import os
 import time
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from functools import partial
 
 import jax
@@ -77,6 +78,10 @@ FIT_DEFAULTS = {name: inspect.signature(fit).parameters[name].default
 # fastest on a 2-core CPU among 1, 4, 16 and the whole chunk (BENCHMARKS.md, section batch).
 SEARCH_BATCH = 1
 POLISH_BATCH = 1
+# Samples per device below which a chunk uses fewer devices (`_run_chunk`): 8 warm fits of
+# 120-716 points take 0.1-0.2 s on one CPU device, about what loading one compiled shape for
+# a second device from the caches takes, while compiling it takes 10-30 s.
+SAMPLES_PER_DEVICE = 8
 
 
 def fit_batch(samples: Sequence[Measurements], *, model: str | Model | None = None,
@@ -200,7 +205,10 @@ def _sample_result(data, searched, polished, population_size, seconds, max_steps
 def _run_chunk(problems: list[Problem], seeds, bounds, config, devices, chunk_size, settings):
     """Pad one chunk, fit a block of it on every device at once; host arrays of the samples."""
     count = len(problems)
-    devices = devices[:count]
+    # A device per SAMPLES_PER_DEVICE samples at most: XLA compiles a shape once per device,
+    # and a small chunk (a cross-validation's folds, a few files) gains less from a second
+    # device than that compilation (or its load from the cache) costs.
+    devices = devices[:max(1, count // SAMPLES_PER_DEVICE)]
     lanes = min(chunk_size, 1 << (count - 1).bit_length())
     lanes = -(-max(lanes, count) // len(devices)) * len(devices)
     points = max(p.target.size for p in problems)  # each already a multiple of POINT_BUCKET
@@ -216,14 +224,24 @@ def _run_chunk(problems: list[Problem], seeds, bounds, config, devices, chunk_si
             *(padded_scene(problems[i].scene, points) for i in chosen))))
     config = EvolveConfig() if config is None else config
     block = lanes // len(devices)
-    running = []  # dispatched to every device before any result is awaited
     per_sample = (np.asarray(seeds)[chosen], targets, weights, None if shared else scene)
-    for number, device in enumerate(devices):
+
+    def dispatch(number: int):
+        device = devices[number]
         part = jax.tree.map(partial(_block, number=number, size=block), per_sample)
         seeds_, target, weight, scene_ = jax.device_put(part, device)
-        running.append(_fit_chunk(seeds_, jax.device_put(scene, device) if shared else scene_,
-                                  target, weight, *jax.device_put((bounds, config), device),
-                                  model, **settings))
+        return _fit_chunk(seeds_, jax.device_put(scene, device) if shared else scene_,
+                          target, weight, *jax.device_put((bounds, config), device),
+                          model, **settings)
+
+    # Dispatched to every device before any result is awaited. From threads: XLA compiles
+    # a new shape once per device, and so compiles for all devices at once (2 devices:
+    # 29 s + 23 s one after the other on a loaded 2-core machine).
+    if len(devices) == 1:
+        running = [dispatch(0)]
+    else:
+        with ThreadPoolExecutor(len(devices)) as pool:
+            running = list(pool.map(dispatch, range(len(devices))))
     return jax.tree.map(lambda *blocks: np.concatenate(blocks)[:count], *running)
 
 

@@ -24,6 +24,8 @@ import inspect
 import os
 import pickle
 import tempfile
+import threading
+import time
 from importlib import metadata
 from pathlib import Path
 
@@ -49,6 +51,50 @@ def enable(directory: str | os.PathLike | None = None) -> Path:
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
     _directory = directory
     return directory
+
+
+# JAX's own timing events (jax/_src/dispatch.py), each recorded with the function's name.
+_COMPILE_EVENTS = {"/jax/core/compile/jaxpr_trace_duration": "traced",
+                   "/jax/core/compile/jaxpr_to_mlir_module_duration": "lowered",
+                   "/jax/core/compile/backend_compile_duration": "compiled"}
+_reporting = {"on": False, "listening": False}
+compile_seconds: dict[str, float] = {}  # by step ("traced", ...), since reporting began
+
+
+def report_compiles(on: bool = True) -> None:
+    """Say on stderr how long each stage takes to trace, lower and compile (or stop).
+
+    One line per step of every compilation, e.g. ``compile: _fit_chunk compiled by XLA in
+    3.21 s`` (a persistent-cache hit shows as a short compile), and for a `stage`, whether
+    its traced form was loaded from disk or traced and exported. Sums by step are kept in
+    `compile_seconds`. The CLI calls this at ``-v``.
+    """
+    _reporting["on"] = on
+    if on:
+        compile_seconds.clear()
+    if _reporting["listening"]:
+        return
+    _reporting["listening"] = True
+
+    def listen(event: str, seconds: float, **metadata) -> None:
+        step = _COMPILE_EVENTS.get(event)
+        if step is None or not _reporting["on"]:
+            return
+        compile_seconds[step] = compile_seconds.get(step, 0.0) + seconds
+        if seconds >= 0.01:  # the many tiny jits of host-side helpers are not worth a line
+            name = str(metadata.get("fun_name", "?")).removeprefix("jit_")
+            if name.startswith("jit(") and name.endswith(")"):
+                name = name[4:-1]
+            _say(f"{name} {step}{' by XLA' if step == 'compiled' else ''} in {seconds:.2f} s")
+
+    jax.monitoring.register_event_duration_secs_listener(listen)
+
+
+def _say(text: str) -> None:
+    if _reporting["on"]:
+        import sys
+
+        print(f"compile: {text}", file=sys.stderr, flush=True)
 
 
 def stage(function=None, *, static_argnames: tuple[str, ...] = ()):
@@ -80,25 +126,46 @@ def stage(function=None, *, static_argnames: tuple[str, ...] = ()):
 _loaded: dict[Path, tuple | None] = {}
 
 
-def _load(path: Path, build) -> tuple | None:
+_building: dict[Path, threading.Lock] = {}  # one per stage file being loaded or built
+_building_lock = threading.Lock()
+
+
+def _load(path: Path, build, name: str) -> tuple | None:
+    """`_load_once` of ``path``, one thread at a time (threads that need the same stage at
+    once, one per device or per model, trace it once and share it)."""
+    with _building_lock:
+        lock = _building.setdefault(path, threading.Lock())
+    with lock:
+        return _load_once(path, build, name)
+
+
+def _load_once(path: Path, build, name: str) -> tuple | None:
     """The compiled call of one stage file and its output structure, built if missing.
 
     None when the stage cannot be exported or written (the caller then runs plain jit).
     """
     if path not in _loaded:
+        tic = time.perf_counter()
         try:
             exported, out_tree = pickle.loads(path.read_bytes())
             exported = jax.export.deserialize(exported)
+            _say(f"{name} stage loaded from disk in {time.perf_counter() - tic:.2f} s")
         except Exception:  # noqa: BLE001  (missing, truncated, other jaxlib): trace again
             exported = None
         if exported is None:
             try:
                 exported, out_tree = build()
                 _write(path, pickle.dumps((exported.serialize(), out_tree)))
+                _say(f"{name} stage traced and exported in {time.perf_counter() - tic:.2f} s")
             except Exception:  # noqa: BLE001  (not exportable, cache not writable)
                 _loaded[path] = None
                 return None
-        _loaded[path] = jax.jit(exported.call), out_tree
+
+        def call(*args):
+            return exported.call(*args)
+
+        call.__name__ = call.__qualname__ = name  # named in JAX's compile events
+        _loaded[path] = jax.jit(call), out_tree
     return _loaded[path]
 
 
@@ -107,7 +174,8 @@ def _exported(function, jitted, static: dict, args: tuple, kwargs: dict):
     # Typed PRNG keys cannot cross the export boundary: pass their raw data and rewrap.
     impls = [jax.random.key_impl(x) if _is_key(x) else None for x in leaves]
     raw = [jax.random.key_data(x) if impl else x for x, impl in zip(leaves, impls)]
-    avals = [jax.ShapeDtypeStruct(jax.numpy.shape(x), jax.numpy.result_type(x),
+    avals = [x if isinstance(x, jax.ShapeDtypeStruct) else
+             jax.ShapeDtypeStruct(jax.numpy.shape(x), jax.numpy.result_type(x),
                                   weak_type=getattr(x, "weak_type", type(x) in (int, float)))
              for x in raw]
     signature = repr((function.__module__, function.__qualname__, sorted(static.items()),
@@ -116,18 +184,20 @@ def _exported(function, jitted, static: dict, args: tuple, kwargs: dict):
     path = _directory / "stages" / f"{hashlib.sha256(signature.encode()).hexdigest()}.stage"
     out_tree = []
 
-    def flat(*raw):
+    def flat(*raw):  # renamed below, so compile timings name the stage
         leaves = [jax.random.wrap_key_data(x, impl=i) if i else x for x, i in zip(raw, impls)]
         args, kwargs = jax.tree.unflatten(in_tree, leaves)
         out, tree = jax.tree.flatten(function(*args, **kwargs, **static))
         out_tree.append(tree)
         return out
 
+    flat.__name__ = flat.__qualname__ = function.__name__
+
     def build():
         exported = jax.export.export(jax.jit(flat))(*avals)
         return exported, out_tree[0]
 
-    loaded = _load(path, build)
+    loaded = _load(path, build, function.__name__)
     if loaded is None:
         return jitted(*args, **kwargs, **static)
     compiled, tree = loaded

@@ -24,6 +24,8 @@ from collections.abc import Iterable, Iterator
 
 from brdfjax.optional import require
 
+IN_FLIGHT_PER_WORKER = 2  # chunks queued per worker: one running, one ready to start
+
 
 def fit_chunk(samples: list, options: dict) -> list[dict]:
     """Fit one chunk of samples wherever this runs, returning JSON-ready results.
@@ -100,12 +102,30 @@ def fit_on_cluster(chunks: Iterable[list], scheduler: str,
     with Client(scheduler, timeout="30s") as client:
         # Workers keep compiled fits on disk, so a restarted worker skips XLA compilation.
         client.run(enable)
-        numbers = {}
-        for number, chunk in enumerate(chunks):
-            numbers[client.submit(fit_chunk, chunk, options, pure=False)] = number
-        for future in as_completed(numbers):
+        # At most a few chunks per worker in flight: the rest are read (and shipped) only
+        # as earlier ones finish, so a cube of millions of samples never sits in memory.
+        in_flight = IN_FLIGHT_PER_WORKER * max(1, len(client.scheduler_info()["workers"]))
+        chunks = enumerate(chunks)
+        numbers, running = {}, as_completed()
+
+        def submit() -> bool:
+            number, chunk = next(chunks, (None, None))
+            if chunk is None:
+                return False
+            future = client.submit(fit_chunk, chunk, options, pure=False)
+            numbers[future] = number
+            running.add(future)
+            return True
+
+        while len(numbers) < in_flight and submit():
+            pass
+        for future in running:
+            number = numbers.pop(future)
             try:
-                yield numbers[future], future.result()
+                result = future.result()
             # Whatever a worker raised (or KilledWorker), the chunk, not the run, has failed.
             except Exception as error:  # noqa: BLE001
-                yield numbers[future], error
+                result = error
+            future.release()
+            submit()
+            yield number, result

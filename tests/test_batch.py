@@ -285,8 +285,9 @@ def test_split_over_two_devices_gives_the_same_results(reference, catalogue, env
                                                          tmp_path):
     out = tmp_path / "results.csv"
     env = {**environment, "XLA_FLAGS": "--xla_force_host_platform_device_count=2"}
-    done = subprocess.run(batch_command(catalogue, out), check=False, env=env,
-                          capture_output=True, text=True, timeout=280)
+    # 16 samples a chunk: a device per 8 samples (brdfjax.batch.SAMPLES_PER_DEVICE)
+    done = subprocess.run(batch_command(catalogue, out, "--chunk-size=16"), check=False,
+                          env=env, capture_output=True, text=True, timeout=280)
     assert "fitting on 2 cpu device(s)" in done.stderr, done.stderr
     assert out.read_text() == reference[0]
 
@@ -333,6 +334,56 @@ def test_a_rerun_never_reads_its_own_outputs_and_draws_one_bar(tmp_path, capsys)
     assert out.read_text() == written
     with pytest.raises(ValueError, match="is this batch's output"):
         expand([str(out)], outputs=[str(out)])
+
+
+def test_a_rerun_with_other_options_refuses_and_keeps_the_rows(tmp_path, capsys):
+    """Rows fitted with one seed and box are never passed off as another run's: a rerun
+    with ``--seed 5 --bound b=-10:10`` (which once said "already done" and kept b = 32.9)
+    fails, naming both changes, and leaves the CSV as it was; the same options (a default
+    spelled out included) resume; with the CSV deleted the new options fit afresh."""
+    from brdfjax.cli import main
+
+    for seed in range(2):
+        save(synthetic(seed, points=40), tmp_path / f"sample_{seed}.csv")
+    out = tmp_path / "results.csv"
+    command = ["batch", str(tmp_path), "--out", str(out), *CLI_SMALL]
+    assert main(command) == 0
+    written = out.read_text()
+    capsys.readouterr()
+    assert main([*command, "--seed", "5", "--bound", "b=-10:10"]) == 1
+    said = capsys.readouterr().err
+    assert "fitted with other options" in said and "seed: 0 there, 5 here" in said, said
+    assert "bounds b: -150:80 there, -10:10 here" in said, said
+    assert "already done" not in said and out.read_text() == written
+    assert main([*command, "--model", "ggx"]) == 1  # another model: other columns too
+    assert main([*command, "--seed", "0"]) == 0  # the default, spelled out
+    assert "2 of 2 inputs already done" in capsys.readouterr().err
+    out.unlink()
+    assert main([*command, "--seed", "5", "--bound", "b=-10:10"]) == 0
+    assert all(-10 <= float(r["b"]) <= 10 for r in rows(out.read_text()))
+
+
+def test_verbose_says_which_stage_compiled_for_how_long(tmp_path, monkeypatch, capsys):
+    """``-v`` (before or after the command) times every compilation: a line per stage and
+    step, and the sums at the end; without it, no such line."""
+    from brdfjax.cli import main
+
+    monkeypatch.setenv("BRDFJAX_CACHE", str(tmp_path / "cache"))
+    save(synthetic(0, points=40), tmp_path / "sample.csv")
+    command = ["batch", str(tmp_path / "sample.csv"), "--out", str(tmp_path / "out.csv"),
+               *CLI_SMALL, "--population-size=48"]  # a shape no other test compiles
+    assert main(["-v", *command]) == 0
+    said = capsys.readouterr().err
+    assert "compile: _fit_chunk stage traced and exported in" in said, said
+    assert "compile: _fit_chunk compiled by XLA in" in said, said
+    assert "compile: in all traced" in said and "compiled" in said.splitlines()[-1]
+    (tmp_path / "out.csv").unlink()
+    assert main([*command, "--verbose"]) == 0  # compiled already in this process
+    said = capsys.readouterr().err
+    assert "compile: in all nothing compiled" in said and "_fit_chunk" not in said, said
+    (tmp_path / "out.csv").unlink()
+    assert main(command) == 0
+    assert "compile:" not in capsys.readouterr().err
 
 
 def test_every_wavelength_is_a_sample_with_its_own_row(tmp_path, capsys):

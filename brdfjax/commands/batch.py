@@ -8,7 +8,9 @@ temporary file and moved into place, so it always holds every finished sample an
 half-written row. Rerunning the same command skips the files already in it: an
 interrupted batch (Ctrl-C, a crash, a killed job) resumes where it stopped, and the final
 file is the same as an uninterrupted run's, rows in input order. Delete a row (or the
-file) to refit it.
+file) to refit it. The options that change results (model, seed, bounds, search settings,
+uncertainty, reader options) are kept beside the CSV in ``OUT.options.json``; a rerun with
+other options refuses, naming what changed, instead of keeping rows fitted otherwise.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from __future__ import annotations
 import csv
 import glob
 import io
+import json
 import math
 import os
 import sys
@@ -23,6 +26,8 @@ from pathlib import Path
 
 from brdfjax.commands import add_reader_options, check_writable, reader_options
 from brdfjax.formats import READABLE
+from brdfjax.formats.cube import SUFFIXES as CUBE_SUFFIXES
+from brdfjax.formats.cube import is_cube
 
 AUTO_SAMPLES = 8  # --model auto chooses on at most this many samples
 SEARCH_OPTIONS = {"population_size": "genetic-search population",
@@ -41,9 +46,13 @@ def register(subparsers) -> None:
                     "same command to resume an interrupted batch.")
     p.add_argument("inputs", nargs="+", metavar="INPUT",
                    help=f"files, directories (every {'/'.join(READABLE)} inside except "
-                        "RT-300S blank_*.xls) or glob patterns such as 'runs/*.xls'")
-    p.add_argument("--out", required=True, metavar="CSV",
-                   help="results file; files already in it are not refitted")
+                        "RT-300S blank_*.xls) or glob patterns such as 'runs/*.xls'; or "
+                        "one HDF5 cube of many samples (.h5, .hdf5, .nc: datasets theta_i, "
+                        "theta_r, phi_r in degrees, brdf (N, P) with NaN missing, optional "
+                        "sigma and sample; see brdfjax.formats.cube)")
+    p.add_argument("--out", required=True, metavar="CSV|H5",
+                   help="results file (CSV; for a cube, .h5); samples already in it are "
+                        "not refitted, and a rerun with other options refuses")
     p.add_argument("--json", metavar="DIR", help="also write each result as DIR/NAME.json")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="send chunks to this Dask scheduler (tcp://HOST:8786) "
@@ -135,6 +144,85 @@ def read_results(path, columns) -> dict:
         return {sample_key(row["file"], row.get("wavelength_nm")): row for row in reader}
 
 
+def result_options(args, model) -> dict:
+    """Every option that changes a batch's numbers, as plain data: what a resume must match.
+
+    The search settings are resolved to the values the fit uses (an option given equal to
+    its default is the same run as one left out), and the bounds to the whole box of the
+    model (so ``--bound b=-150:80`` equals the default box it spells out). ``--chunk-size``
+    and ``--scheduler`` are left out: they change where and how samples are grouped, not
+    their results (`brdfjax.batch.fit_batch`).
+    """
+    from brdfjax.batch import FIT_DEFAULTS
+    from brdfjax.bounds import make_bounds
+    from brdfjax.commands.fitting import parse_bounds
+
+    box = make_bounds(parse_bounds(args.bound), model=model)
+    return {"model": model.name, "seed": args.seed,
+            "bounds": {name: [float(low), float(high)]
+                       for name, low, high in zip(model.names, box.lower, box.upper)},
+            **{name: (getattr(args, name) if getattr(args, name) is not None
+                      else FIT_DEFAULTS[name]) for name in SEARCH_OPTIONS},
+            "uncertainty": args.uncertainty,
+            "reader": {k: (str(v) if k == "blank" else v)
+                       for k, v in reader_options(args).items()},
+            "wavelength": args.wavelength}
+
+
+def options_path(out) -> Path:
+    """Where the options of the run that wrote ``out`` are kept: ``OUT.options.json``."""
+    return Path(f"{out}.options.json")
+
+
+def check_options(out, rows: dict, settings: dict) -> None:
+    """Refuse to resume ``out`` when its rows were fitted with other options.
+
+    Rows fitted with another seed, box, model or search would otherwise be kept as if they
+    were this run's (a rerun with ``--seed 5 --bound b=-10:10`` once kept rows with b =
+    32.9). With no rows there is nothing to protect and the run starts afresh.
+    """
+    import json
+
+    if not rows:
+        return
+    path = options_path(out)
+    try:
+        stored = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        raise ValueError(f"{out}: has {len(rows)} rows but no readable record of the options "
+                         f"that fitted them ({path}); give another --out, or delete {out} "
+                         "to refit every input") from None
+    changed = []
+    for name, value in settings.items():
+        before = stored.get(name)
+        if isinstance(value, dict) and isinstance(before, dict):  # say which entries
+            changed += [f"{name} {key}: {_shown(before.get(key))} there, "
+                        f"{_shown(value.get(key))} here"
+                        for key in dict.fromkeys([*before, *value])
+                        if before.get(key) != value.get(key)]
+        elif before != value:
+            changed.append(f"{name}: {_shown(before)} there, {_shown(value)} here")
+    if changed:
+        raise ValueError(f"{out}: its {len(rows)} rows were fitted with other options "
+                         f"({'; '.join(changed)}); give another --out, or delete {out} "
+                         "to refit every input with these")
+
+
+def _shown(value) -> str:
+    if isinstance(value, list):
+        return ":".join(f"{v:g}" if isinstance(v, float) else str(v) for v in value)
+    return "none" if value is None else str(value)
+
+
+def write_options(out, settings: dict) -> None:
+    """Keep ``settings`` beside ``out`` (`options_path`), for `check_options` on a rerun."""
+    import json
+
+    from brdfjax.formats import write_atomically
+
+    write_atomically(options_path(out), json.dumps(settings, indent=1) + "\n")
+
+
 def write_results(path, rows: dict, order, columns) -> None:
     """Rewrite the results CSV atomically: rows in input order, then any others."""
     from brdfjax.formats import write_atomically
@@ -215,6 +303,8 @@ def run_batch(args) -> int:
         from brdfjax.cluster import require_dask
 
         require_dask()  # before any file is read
+    if any(is_cube(item) for item in args.inputs):
+        return run_cube(args)
     spectral = spectral_request(args.wavelength)
     files = expand(args.inputs, outputs=(args.out, args.json))
     if spectral is not None:
@@ -232,6 +322,8 @@ def run_batch(args) -> int:
         clash = next(n for n in names if names.count(n) > 1)
         raise ValueError(f"--json: two inputs are named {clash!r}; give them separate runs")
     rows = read_results(args.out, columns)
+    settings = result_options(args, model)
+    check_options(args.out, rows, settings)
     pending = [f for f in files if f not in rows]
     options = {"seed": args.seed, "ranges": parse_bounds(args.bound), "model": model.name,
                "chunk_size": args.chunk_size, "uncertainty": args.uncertainty,
@@ -244,6 +336,7 @@ def run_batch(args) -> int:
               file=sys.stderr)
     if not pending:
         return _summary(rows, files, [])
+    write_options(args.out, settings)  # before the first row, so no row lacks its key
     if devices:  # said before the bar opens, so it is not drawn through it
         print(f"fitting on {len(devices)} {devices[0].platform} device(s)", file=sys.stderr)
 
@@ -276,6 +369,87 @@ def run_batch(args) -> int:
     if args.plot:
         _plot_spectral(args.plot, [rows[key] for key in files if key in rows], model.names)
     return _summary(rows, files, lost)
+
+
+def run_cube(args) -> int:
+    """``brdfjax batch CUBE.h5 --out RESULTS.h5``: every sample of one HDF5 cube
+    (`brdfjax.formats.cube`), streamed a chunk at a time, journalled, resumable."""
+    import numpy as np
+    from tqdm import tqdm
+
+    from brdfjax.commands.fitting import parse_bounds
+    from brdfjax.formats.cube import Cube, CubeResults
+    from brdfjax.models import get
+
+    if len(args.inputs) != 1:
+        raise ValueError(f"{' '.join(args.inputs)}: give one cube (.h5) per run, alone")
+    if Path(args.out).suffix.lower() not in CUBE_SUFFIXES[:2]:
+        raise ValueError(f"--out {args.out}: the results of a cube go to an HDF5 file; "
+                         "give --out RESULTS.h5")
+    given = [f"--{name}" for name in ("json", "plot", "wavelength") if getattr(args, name)]
+    if given:
+        raise ValueError(f"{', '.join(given)}: not for a cube; its results file holds "
+                         "every sample")
+    if Path(args.inputs[0]).resolve() == Path(args.out).resolve():
+        raise ValueError(f"--out {args.out}: is the cube itself; give another file")
+    with Cube(args.inputs[0]) as cube:
+        devices = _local_devices() if args.scheduler is None else None
+        if args.model == "auto":
+            first = list(range(min(cube.count, AUTO_SAMPLES)))
+            samples = dict(zip(first, cube.read(first)))
+            chosen = choose_model(first, args, read=samples.__getitem__)
+        model = get(chosen if args.model == "auto" else args.model)
+        # The cube's path and size too: results are by sample index, so another cube (or
+        # the same grown) must not take over this one's rows.
+        settings = {**result_options(args, model), "cube": str(cube.path.resolve()),
+                    "samples": cube.count}
+        results = CubeResults(args.out, cube.count, model.names, settings)
+        stored = results.stored_settings()
+        if stored is not None and json.loads(stored) != json.loads(results.settings):
+            old = json.loads(stored)
+            changed = [f"{k}: {_shown(old.get(k))} there, {_shown(v)} here"
+                       for k, v in settings.items() if old.get(k) != v]
+            raise ValueError(f"{args.out}: was fitted with other options "
+                             f"({'; '.join(changed)}); give another --out, or delete it "
+                             f"(and {results.parts}) to refit")
+        done = results.done()
+        pending = np.flatnonzero(~done)
+        if done.any():
+            print(f"{args.out}: {int(done.sum())} of {cube.count} samples already done; "
+                  + (f"fitting the other {pending.size}" if pending.size
+                     else "nothing left to fit"), file=sys.stderr)
+        results.start()
+        options = {"seed": args.seed, "ranges": parse_bounds(args.bound),
+                   "model": model.name, "chunk_size": args.chunk_size,
+                   "uncertainty": args.uncertainty,
+                   **{k: getattr(args, k) for k in SEARCH_OPTIONS
+                      if getattr(args, k) is not None}}
+        blocks = [pending[i:i + args.chunk_size]
+                  for i in range(0, pending.size, args.chunk_size)]
+        if devices and blocks:
+            print(f"fitting {cube.count} samples of {cube.points} points on {len(devices)} "
+                  f"{devices[0].platform} device(s)", file=sys.stderr)
+        lost = []
+        with tqdm(total=int(pending.size), unit="sample", desc="brdfjax batch",
+                  file=sys.stderr, disable=not blocks) as progress:
+            chunks = ([(int(i), data) for i, data in zip(block, cube.read(block))]
+                      for block in blocks)
+
+            def record(batch: dict) -> None:
+                results.record(list(batch), list(batch.values()))
+                progress.update(len(batch))
+
+            lost = _fit_chunks(chunks, args.scheduler, options, record)
+        counts = results.assemble(cube.path, cube.names, uncertainty=bool(args.uncertainty)) \
+            if not lost else None
+    if lost:
+        raise ValueError(f"{len(lost)} chunk(s) failed on the cluster and were not recorded "
+                         f"(rerun to fit them): {'; '.join(lost)}")
+    print(f"{counts['converged'] + counts['max_steps']} of {cube.count} fitted"
+          + (f" ({counts['max_steps']} stopped at the LM step cap)" if counts["max_steps"]
+             else "") + (f"; {counts['failed']} failed (see message in {args.out})"
+                         if counts["failed"] else ""), file=sys.stderr)
+    return 1 if counts["failed"] else 0
 
 
 def spectral_request(text):
@@ -374,7 +548,7 @@ def read_sample(key: str, args):
     return load_spectral(file, [wavelength])[wavelength]
 
 
-def choose_model(keys, args) -> str:
+def choose_model(keys, args, read=None) -> str:
     """``--model auto`` of a batch: one model for every sample, the one with the lowest
     median cv_error over the first `AUTO_SAMPLES` samples that can be compared (one model
     keeps the CSV's columns, and the samples' parameters, comparable). Said on stderr."""
@@ -386,8 +560,8 @@ def choose_model(keys, args) -> str:
     errors, used, reasons = {}, 0, []
     for key in keys:
         try:
-            comparison = compare_models(read_sample(key, args), seed=args.seed,
-                                        discrepancy="none")
+            data = read(key) if read is not None else read_sample(key, args)
+            comparison = compare_models(data, seed=args.seed, discrepancy="none")
         except (DataError, ValueError, OSError) as error:
             reasons.append(f"{key}: {error}")
             continue

@@ -1,0 +1,202 @@
+"""``brdfjax batch CUBE.h5``: real HDF5 files in and out, single-fit results, a clear error
+for a bad cube, a run killed with SIGKILL and resumed, other options refused, Dask."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+from conftest import REPO
+
+from brdfjax.fitting import fit
+from brdfjax.formats.cube import Cube, write_cube
+from brdfjax.model import PAPER_SAMPLES, brdf
+
+h5py = pytest.importorskip("h5py")
+
+SMALL = {"population_size": 64, "max_generations": 15, "starts": 8, "max_steps": 40}
+CLI_SMALL = [f"--{k.replace('_', '-')}={v}" for k, v in SMALL.items()]
+COUNT = 12
+
+
+def geometry():
+    """48 points: four incidences, a 12-angle in-plane scan each (no exact specular)."""
+    theta_i = np.repeat([10.0, 30.0, 45.0, 60.0], 12)
+    theta_r = np.tile(np.linspace(-66, 66, 12), 4)
+    return theta_i, np.abs(theta_r), np.where(theta_r < 0, 180.0, 0.0)
+
+
+def values(count, seed=0):
+    """Five-parameter BRDFs of perturbed paper samples, 2.5 % noise, (count, 48)."""
+    rng = np.random.default_rng(seed)
+    angles = np.radians(geometry())
+    names = list(PAPER_SAMPLES)
+    out = np.empty((count, angles.shape[1]))
+    for k in range(count):
+        params = np.array(PAPER_SAMPLES[names[k % len(names)]])
+        params = params * np.exp(0.1 * rng.standard_normal(5))
+        out[k] = np.asarray(brdf(params, *angles)) * (1 + 0.025 * rng.standard_normal(48))
+    return out
+
+
+@pytest.fixture(scope="module")
+def cube(tmp_path_factory):
+    """A shared-geometry cube: one sample with two missing readings, one with none left."""
+    path = tmp_path_factory.mktemp("cube") / "cube.h5"
+    brdf_values = values(COUNT)
+    brdf_values[3, [5, 17]] = np.nan
+    brdf_values[7] = np.nan
+    write_cube(path, *geometry(), brdf_values, sample=[f"pixel {k}" for k in range(COUNT)])
+    return path
+
+
+@pytest.fixture(scope="module")
+def environment(tmp_path_factory):
+    return {**os.environ, "BRDFJAX_CACHE": str(tmp_path_factory.mktemp("jax-cache")),
+            "PYTHONPATH": str(REPO), "XLA_FLAGS": "--xla_force_host_platform_device_count=1"}
+
+
+def command(cube, out, *extra):
+    return [sys.executable, "-m", "brdfjax.cli", "batch", str(cube), "--out", str(out),
+            "--chunk-size=2", *CLI_SMALL, *extra]
+
+
+def read(path) -> dict:
+    with h5py.File(path, "r") as results:
+        return {name: results[name][...] for name in results} | {
+            f"attr {k}": v for k, v in results.attrs.items()}
+
+
+@pytest.fixture(scope="module")
+def reference(cube, environment, tmp_path_factory):
+    out = tmp_path_factory.mktemp("reference") / "results.h5"
+    done = subprocess.run(command(cube, out), env=environment, capture_output=True, text=True,
+                          timeout=600, check=False)
+    return out, done
+
+
+def test_every_sample_gets_its_single_fit(cube, reference):
+    """E of every fitted sample equals brdfjax.fit of that sample (same seed) to 1e-9; the
+    sample without readings fails alone and says why; the names are copied."""
+    out, done = reference
+    assert done.returncode == 1, done.stderr  # the empty sample
+    assert f"{COUNT - 1} of {COUNT} fitted" in done.stderr
+    table = read(out)
+    assert set(table) >= {"kb", "kr", "a", "b", "kd", "error", "status", "message", "sample"}
+    assert table["attr model"] == "five"
+    assert [s.decode() for s in table["sample"]] == [f"pixel {k}" for k in range(COUNT)]
+    status = table["status"].astype(str)
+    assert status[7] == "failed" and "no measurements" in table["message"][7].decode()
+    assert np.isnan(table["error"][7]) and np.isnan(table["kb"][7])
+    with Cube(cube) as opened:
+        samples = opened.read(np.arange(COUNT))
+    assert len(samples[3]) == 46  # the two missing readings left out
+    for k in (0, 3, 10):
+        single = fit(samples[k], **SMALL)
+        assert table["error"][k] == pytest.approx(single.error, rel=1e-9)
+        assert status[k] == single.status
+        assert table["kd"][k] == pytest.approx(single.params.kd, rel=1e-6)
+    assert not out.with_name("results.h5.parts").exists()  # the journal is gone
+
+
+@pytest.mark.timeout(600)
+def test_killed_halfway_and_resumed_loses_and_duplicates_nothing(cube, reference, environment,
+                                                                  tmp_path):
+    out = tmp_path / "results.h5"
+    parts = tmp_path / "results.h5.parts"
+    process = subprocess.Popen(command(cube, out), env=environment,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 400
+    while len(list(parts.glob("*.npz"))) < 2 and process.poll() is None:
+        assert time.monotonic() < deadline, "no chunk journalled in 400 s"
+        time.sleep(0.002)
+    process.send_signal(signal.SIGKILL)
+    assert process.wait(timeout=60) == -signal.SIGKILL
+    kept = len(list(parts.glob("*.npz")))
+    assert 2 <= kept < COUNT // 2 and not out.exists(), "the run ended before it was killed"
+    resumed = subprocess.run(command(cube, out), env=environment, capture_output=True,
+                             text=True, timeout=600, check=False)
+    assert f"{2 * kept} of {COUNT} samples already done" in resumed.stderr, resumed.stderr
+    assert resumed.returncode == 1
+    final, whole = read(out), read(reference[0])
+    assert final.keys() == whole.keys()
+    for name in final:
+        np.testing.assert_array_equal(final[name], whole[name], err_msg=name)
+
+
+def test_a_rerun_with_other_options_is_refused(cube, reference, tmp_path, capsys):
+    from brdfjax.cli import main
+
+    out = tmp_path / "results.h5"
+    out.write_bytes(reference[0].read_bytes())
+    assert main(command(cube, out, "--seed", "5")[3:]) == 1
+    said = capsys.readouterr().err
+    assert "was fitted with other options (seed: 0 there, 5 here)" in said, said
+    assert main(command(cube, out)[3:]) == 1  # the same: nothing to fit, the failure again
+    assert f"{COUNT} of {COUNT} samples already done; nothing left" in capsys.readouterr().err
+    bigger = tmp_path / "bigger.h5"
+    write_cube(bigger, *geometry(), values(COUNT + 2))
+    assert main(command(bigger, out)[3:]) == 1  # another cube: its rows are not these
+    said = capsys.readouterr().err
+    assert f"samples: {COUNT} there, {COUNT + 2} here" in said and "cube: " in said, said
+
+
+@pytest.mark.parametrize(("change", "expected"), [
+    ("drop theta_r", "no dataset theta_r"),
+    ("brdf 1-D", "brdf has shape (12,), not (N, P)"),
+    ("phi_r wrong", "phi_r has shape (47,); brdf is (12, 48), so give (12, 48) or (48,)"),
+    ("not hdf5", "cannot be read as HDF5"),
+])
+def test_a_bad_cube_is_one_clear_error(tmp_path, capsys, change, expected):
+    from brdfjax.cli import main
+
+    path = tmp_path / "bad.h5"
+    theta_i, theta_r, phi_r = geometry()
+    brdf_values = values(COUNT)
+    if change == "not hdf5":
+        path.write_text("theta_i,theta_r,phi_r,brdf\n")
+    else:
+        write_cube(path, theta_i, theta_r, phi_r[:47] if change == "phi_r wrong" else phi_r,
+                   brdf_values[:, 0] if change == "brdf 1-D" else brdf_values)
+        if change == "drop theta_r":
+            with h5py.File(path, "a") as cube:
+                del cube["theta_r"]
+    assert main(["batch", str(path), "--out", str(tmp_path / "out.h5")]) == 1
+    said = capsys.readouterr().err.strip().splitlines()
+    assert len(said) == 1 and str(path) in said[0] and expected in said[0], said
+
+
+def test_per_sample_geometry_reads_each_row(tmp_path):
+    """Angles (N, P) give each sample its own geometry; NaN angles drop the reading."""
+    theta_i, theta_r, phi_r = geometry()
+    rows = np.stack([theta_r, theta_r + 1.0])
+    rows[1, 0] = np.nan
+    path = tmp_path / "rows.h5"
+    write_cube(path, theta_i, rows, phi_r, values(2))
+    with Cube(path) as cube:
+        assert not cube.shares_geometry
+        first, second = cube.read([0, 1])
+    np.testing.assert_allclose(np.degrees(first.theta_r), theta_r)
+    np.testing.assert_allclose(np.degrees(second.theta_r), theta_r[1:] + 1.0)
+    assert first.name == "rows.h5[0]"
+
+
+@pytest.mark.timeout(600)
+def test_dask_fits_the_cube_chunk_by_chunk(cube, reference, environment, tmp_path,
+                                           monkeypatch, capsys):
+    distributed = pytest.importorskip("distributed")
+    from brdfjax.cli import main
+
+    for name, value in environment.items():  # the workers inherit it when spawned
+        monkeypatch.setenv(name, value)
+    out = tmp_path / "results.h5"
+    with distributed.LocalCluster(n_workers=2, processes=True, threads_per_worker=1,
+                                  host="127.0.0.1", dashboard_address=None) as cluster:
+        code = main(command(cube, out, "--scheduler", cluster.scheduler_address)[3:])
+    assert code == 1 and f"{COUNT - 1} of {COUNT} fitted" in capsys.readouterr().err
+    final, whole = read(out), read(reference[0])
+    for name in final:
+        np.testing.assert_array_equal(final[name], whole[name], err_msg=name)
