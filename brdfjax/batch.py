@@ -212,8 +212,8 @@ def _run_chunk(problems: list[Problem], seeds, bounds, config, devices, chunk_si
     if shared:
         scene = padded_scene(problems[0].scene, points)
     else:
-        scene = type(problems[0].scene)(*(np.stack(fields) for fields in zip(
-            *(padded_scene(problems[i].scene, points) for i in chosen))))
+        scene = jax.tree.map(lambda *fields: np.stack(fields),
+                             *(padded_scene(problems[i].scene, points) for i in chosen))
     config = EvolveConfig() if config is None else config
     block = lanes // len(devices)
     running = []  # dispatched to every device before any result is awaited

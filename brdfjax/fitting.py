@@ -293,6 +293,7 @@ def fit_result(data, train, held, vector, bounds, model, geometry=None,
     (status, timings, ...).
     `brdfjax.batch` builds each sample's result with it too."""
     geometry = prepare(data, model) if geometry is None else geometry
+    vector = np.asarray(model.canonical(vector, bounds), dtype=float)  # a sum's lobes ordered
     fitted = np.asarray(projected(vector, geometry, model))[:len(data)]  # padded geometry
     target, weight = targets(data)
     is_held = data.incidence_mask(held.incidences_deg)

@@ -35,7 +35,7 @@ def _discover() -> dict[str, type[Model]]:
                 continue
             for _, cls in inspect.getmembers(importlib.import_module(f"{__name__}.{module.name}"),
                                              inspect.isclass):
-                if issubclass(cls, Model) and "name" in cls.__dict__:
+                if issubclass(cls, Model) and isinstance(cls.__dict__.get("name"), str):
                     _registry[cls.name] = cls
         order = [DEFAULT] + sorted(set(_registry) - {DEFAULT})
         _registry.update({name: _registry.pop(name) for name in order})
@@ -57,10 +57,15 @@ def get(model: str | Model | None = None, constants=None) -> Model:
     """
     if model is None:
         model = DEFAULT
+    if isinstance(model, str) and "+" in model:
+        from brdfjax.models.sum import Sum
+
+        model = Sum(tuple(get(part.strip()) for part in model.split("+")))
     if isinstance(model, str):
         registry = _discover()
         if model not in registry:
-            raise ValueError(f"unknown model {model!r}; choose one of {', '.join(registry)}")
+            raise ValueError(f"unknown model {model!r}; choose one of {', '.join(registry)}, "
+                             "or a sum of them such as ggx+backscatter")
         model = registry[model]()
     if not isinstance(model, Model):
         raise TypeError(f"expected a model name or a brdfjax.models.Model, got {model!r}")
