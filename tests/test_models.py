@@ -376,7 +376,7 @@ def test_ross_li_at_90_degrees_is_finite_and_its_projection_stays_bounded():
 def test_abg_at_the_specular_point_is_its_limit(g):
     """x^g at x = 0 is the limit along the specular approach: A / B for g > 0, A / (B + 1)
     for g = 0."""
-    p = np.array([1e-3, 1e-2, g])
+    p = np.array([1e-3, 0.1, g])
     at = float(brdf(p, 0.6, 0.6, np.pi, model="abg"))
-    near = float(transcription.abg(*p, 0.6, 0.6 + 1e-9, np.pi))
-    assert at == pytest.approx(near, rel=1e-5)
+    near = float(transcription.abg(*p, 0.6, 0.6 + 1e-12, np.pi))
+    assert at == pytest.approx(near, rel=1e-4)
