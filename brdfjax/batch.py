@@ -56,6 +56,7 @@ from brdfjax.bounds import Bounds, default_bounds
 from brdfjax.cache import stage
 from brdfjax.evolve import EvolveConfig, EvolveResult, evolve
 from brdfjax.fitting import (
+    solved_fit,
     FitResult,
     check_bounds,
     fit,
@@ -254,6 +255,11 @@ def _fit_chunk(seeds, scene, target, weight, bounds: Bounds, config: EvolveConfi
     Returns:
         The batched `EvolveResult` and `PolishResult`, leading axis B.
     """
+
+    if model.searched_size == 0:  # a linear model (Ross-Li, Lambert): one exact solve
+        return across_samples(lambda scene, target, weight: solved_fit(
+            Problem(scene, target, weight, model), bounds, max_generations), scene,
+            (target, weight), None)
 
     def search(scene, seed, target, weight):
         return evolve(jax.random.key(seed), Problem(scene, target, weight, model), bounds, config,
