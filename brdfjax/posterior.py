@@ -566,7 +566,7 @@ def sample_posterior(data: Measurements, fit, *, walkers: int = 32, max_steps: i
     from tqdm import tqdm
 
     emcee = require_emcee()
-    post, _ = training_setup(data, fit, bounds, model, validate_incidences_deg)
+    post, start = training_setup(data, fit, bounds, model, validate_incidences_deg)
     if walkers < 2 * post.ndim:
         raise ValueError(f"emcee needs at least {2 * post.ndim} walkers for {post.ndim} "
                          f"sampled coordinates, got {walkers}")
@@ -615,15 +615,17 @@ def sample_posterior(data: Measurements, fit, *, walkers: int = 32, max_steps: i
             tau = autocorrelation_time(sampler.get_chain())
             bar.set_postfix(tau=f"{np.max(tau):.1f}")
     timings = {"sampling": time.perf_counter() - tic}
-    return _mcmc_result(sampler, post, tau, chain_path, timings)
+    return _mcmc_result(sampler, post, tau, chain_path, timings, start)
 
 
 def _converged(tau, steps: int) -> bool:
     return bool(np.all(np.isfinite(tau)) and steps > AUTOCORRELATION_LENGTHS * np.max(tau))
 
 
-def _mcmc_result(sampler, post: Posterior, tau, chain_path, timings) -> UncertaintyResult:
-    """Summaries, diagnostics and warnings of a finished emcee run."""
+def _mcmc_result(sampler, post: Posterior, tau, chain_path, timings,
+                 start=None) -> UncertaintyResult:
+    """Summaries, diagnostics and warnings of a finished emcee run (``start``: the fit it
+    started from, whose parts of zero weight a sum of models names)."""
     steps, walkers = int(sampler.iteration), int(sampler.nwalkers)  # numpy ints from HDF5
     finite = np.all(np.isfinite(tau))
     burn_in = min(int(2 * np.max(tau)), steps // 2) if finite else steps // 2
@@ -644,6 +646,8 @@ def _mcmc_result(sampler, post: Posterior, tau, chain_path, timings) -> Uncertai
     warning = chi2_warning(np.median(flat, axis=0), post)
     if warning:
         messages.append(warning)
+    if start is not None:  # a sum of models with a part switched off
+        messages += post.model.idle_parts(start, post.bounds)
     for text in messages:
         warnings.warn(text, UncertaintyWarning, stacklevel=3)
     noise = noise_summary(post)

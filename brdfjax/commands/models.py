@@ -13,8 +13,9 @@ def register(subparsers) -> None:
                     "by cv_error (the mean held-out E of Eq. 6 over interior incidences).")
     p.add_argument("file", help="the measurement file (any format brdfjax reads)")
     p.add_argument("--models", metavar="A,B,...",
-                   help="models to compare (default: all: five, beckmann, ggx, lambert, rpv, "
-                        "torrance-sparrow)")
+                   help="models to compare, sums A+B included (default: five, beckmann, ggx, "
+                        "lambert, rpv, torrance-sparrow, ggx+backscatter, ggx+ggx, abg+lambert, "
+                        "ross-li)")
     p.add_argument("--seed", type=int, default=0, help="the seed of every fit (default 0)")
     p.add_argument("--json", metavar="OUT", help="write the comparison as JSON")
     p.add_argument("--plot", metavar="OUT",
