@@ -208,12 +208,12 @@ def fit_per_incidence(data: Measurements, model=None, *, seed: int = 0, bounds=N
         seed, bounds, **options: as for `brdfjax.batch.fit_batch`.
 
     Returns:
-        ``[(incidence in degrees, FitResult)]`` in incidence order (a bin's mean incidence).
+        ``[(incidence in degrees, FitResult)]`` in incidence order (a bin: the middle of
+        its incidences).
     """
     from brdfjax.batch import fit_batch
 
     groups = incidence_groups(data)
     samples = [data.select(mask) for *_, mask in groups]
     results = fit_batch(samples, model=model, seed=seed, bounds=bounds, **options)
-    return [(float(np.mean(np.degrees(sample.theta_i))), result)
-            for sample, result in zip(samples, results)]
+    return [((low + high) / 2, result) for (_, low, high, _), result in zip(groups, results)]
