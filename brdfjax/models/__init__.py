@@ -8,10 +8,16 @@
 | ``beckmann`` | ks, alpha, f0, kd | `brdfjax.models.beckmann` |
 | ``lambert`` | kd | `brdfjax.models.lambert` |
 | ``rpv`` | rho0, k, asymmetry, rhoc | `brdfjax.models.rpv` |
+| ``backscatter`` | kb, beta | `brdfjax.models.backscatter` |
+| ``abg`` | A, B, g | `brdfjax.models.abg` |
+| ``ross-li`` | f_iso, f_vol, f_geo | `brdfjax.models.ross_li` |
+| ``A+B`` | the parts', repeats ``_2`` | `brdfjax.models.sum` (any sum: ``ggx+backscatter``) |
 
 A model is found by its module: every module of this package whose name does not start
 with ``_`` is imported on the first lookup, and each `Model` subclass in it with a ``name``
-is registered. Adding a model is therefore one new file (see the README, "Adding a model").
+is registered. Adding a model is therefore one new file (see the README, "Adding a model"),
+and it then takes part in sums with no change elsewhere. A name with ``+`` is a `Sum` of the
+named models (`brdfjax.models.sum`); sums are not listed by `available`.
 """
 
 from __future__ import annotations
