@@ -17,7 +17,6 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
-import jax.scipy.linalg
 import numpy as np
 
 from brdfjax.bounds import Bounds
@@ -362,12 +361,13 @@ def polytope_least_squares(gram, projections, total, low, high, pairs=()):
     reduced = reduced + jnp.eye(count, dtype=dtype) * jnp.where(pinned, 1.0, 0.0)[:, None, :]
     rhs = jnp.einsum("fki,fk->fi", bases, projections - anchors @ gram)
     rhs = jnp.where(free, rhs, 0.0)
-    factor = jnp.linalg.cholesky(reduced)
-    pivots = jnp.diagonal(factor, axis1=1, axis2=2) ** 2
-    regular = jnp.all(pinned | (pivots > PIVOT_TOLERANCE * diagonal), axis=1)
-    regular = regular & jnp.all(jnp.isfinite(factor), axis=(1, 2))
-    safe = jnp.where(regular[:, None, None], factor, jnp.eye(count, dtype=dtype))
-    y = jax.vmap(lambda f, b: jax.scipy.linalg.cho_solve((f, True), b))(safe, rhs)
+    # Cholesky unrolled over the K coordinates, vectorised over the faces: no LAPACK call
+    # (LAPACK's custom calls were seen to hang XLA on CPU with several threads or devices,
+    # see `brdfjax.polish`; this is as fast for K <= 7).
+    rows = [[reduced[:, i, j] for j in range(count)] for i in range(count)]
+    y, pivots = _cholesky_solve(rows, [rhs[:, i] for i in range(count)], with_pivots=True)
+    y = jnp.stack(y, axis=1)
+    regular = jnp.all(pinned | (jnp.stack(pivots, axis=1) > PIVOT_TOLERANCE * diagonal), axis=1)
     x = anchors + jnp.einsum("fkj,fj->fk", bases, y)
     satisfied = [(x >= low) & (x <= high)]  # kind 0
     satisfied.append(x >= 0)  # kind 1
@@ -437,13 +437,16 @@ def _pair_faces(weights, s_low, s_high):
     return inside + edges + corners
 
 
-def _cholesky_solve(matrix, rhs):
-    """Solve a small SPD system given as nested lists (unrolled); also whether it is regular."""
+def _cholesky_solve(matrix, rhs, with_pivots=False):
+    """Solve a small SPD system given as nested lists (unrolled); also whether it is regular
+    (or, ``with_pivots``, each pivot, for the caller to judge)."""
     size = len(rhs)
     factor = [[None] * size for _ in range(size)]
     regular = jnp.asarray(True)
+    pivots = []
     for j in range(size):
         pivot = matrix[j][j] - sum(factor[j][k] ** 2 for k in range(j))
+        pivots.append(pivot)
         regular = regular & (pivot > PIVOT_TOLERANCE * matrix[j][j])
         root = jnp.sqrt(jnp.where(pivot > 0, pivot, 1.0))
         factor[j][j] = root
@@ -458,4 +461,4 @@ def _cholesky_solve(matrix, rhs):
     for i in reversed(range(size)):
         solution[i] = (forward[i] - sum(factor[k][i] * solution[k]
                                         for k in range(i + 1, size))) / factor[i][i]
-    return solution, regular
+    return (solution, pivots) if with_pivots else (solution, regular)
