@@ -327,8 +327,11 @@ def bench_cv(models):
 
 
 def bench_command(repeats):
-    runs = {"NiTE on steel A (120 points)": (SPEED_RUN, 5.0),
-            "01aeroglaze (600 points)": (RT300S / "raw_legacy_1deg" / "01aeroglaze.xls", 10.0)}
+    # Targets: 5 and 10 s for the six models; 8 and 15 s for the ten candidates (issue 24).
+    slow = 1.6 if SUFFIX else 1.0
+    runs = {"NiTE on steel A (120 points)": (SPEED_RUN, 5.0 * slow),
+            "01aeroglaze (600 points)": (RT300S / "raw_legacy_1deg" / "01aeroglaze.xls",
+                                         10.0 * 1.5 if SUFFIX else 10.0)}
     cli = str(Path(sys.executable).parent / "brdfjax")
     rows = []
     for label, (path, target) in runs.items():
@@ -342,8 +345,12 @@ def bench_command(repeats):
         rows.append(f"| {label} | {median:.2f} | {min(times):.2f}-{max(times):.2f} | "
                     f"{target:g} | {'yes' if median <= target else 'no'} |")
         print(rows[-1], flush=True)
-    write_section("models-command", "## `brdfjax models` as a whole process\n\n"
-                  "Six models, each fitted on all incidences and cross-validated (all "
+    from brdfjax.selection import DEFAULT_CANDIDATES
+
+    write_section("models-command" + SUFFIX, "## `brdfjax models` as a whole process\n\n"
+                  f"Its {len(DEFAULT_CANDIDATES)} default candidates "
+                  f"({', '.join(DEFAULT_CANDIDATES)}), each fitted on all incidences and "
+                  "cross-validated (all "
                   "folds), warm caches (one run before timing), median of "
                   f"{repeats} runs of `brdfjax models FILE`; the models run in threads, "
                   f"one per core ({os.cpu_count()} here).\n\n"
