@@ -318,48 +318,64 @@ def polytope_least_squares(gram, projections, total, low, high, pairs=()):
     count = projections.shape[0]
     dtype = jnp.result_type(total)
     paired = {k for i, j, *_ in pairs for k in (i, j)}
-    # Each coordinate's options: (anchor, {free variable: coefficient}, checks), a check
-    # being (kind, coordinate or pair number): kind 0 low <= x_k <= high, 1 x_k >= 0, 2 the
-    # pair's sum within its bounds.
+    # The faces' structure is static (NumPy); their numbers come from two short traced
+    # vectors: ``values`` (anchors: 0, the bounds, each pair's corners) and ``ratios`` (the
+    # slope -w_i / w_j of each pair's sum edge), so that the traced graph stays small.
+    values = [jnp.asarray(0.0, dtype)] + [low[k] for k in range(count)] + [
+        high[k] for k in range(count)]
+    ratios = [jnp.asarray(1.0, dtype)]
+    # Each coordinate's options: (coordinate, anchor's index in values, {free variable:
+    # index in ratios}, checks), a check being (kind, coordinate or pair number): kind 0
+    # low <= x_k <= high, 1 x_k >= 0, 2 the pair's sum within its bounds.
     choices = []
     for k in range(count):
         if k not in paired:
-            choices.append([[(k, 0.0, {k: 1.0}, [(0, k)])], [(k, low[k], {}, [])],
-                            [(k, high[k], {}, [])]])
+            choices.append([[(k, 0, {k: 0}, [(0, k)])], [(k, 1 + k, {}, [])],
+                            [(k, 1 + count + k, {}, [])]])
     for number, (i, j, w_i, w_j, s_low, s_high) in enumerate(pairs):
-        faces = [[(i, 0.0, {i: 1.0}, [(1, i)]), (j, 0.0, {j: 1.0}, [(1, j), (2, number)])],
-                 [(i, 0.0, {}, []), (j, 0.0, {j: 1.0}, [(1, j), (2, number)])],
-                 [(i, 0.0, {i: 1.0}, [(1, i), (2, number)]), (j, 0.0, {}, [])]]
+        ratios.append(-w_i / w_j)
+        slope = len(ratios) - 1
+        faces = [[(i, 0, {i: 0}, [(1, i)]), (j, 0, {j: 0}, [(1, j), (2, number)])],
+                 [(i, 0, {}, []), (j, 0, {j: 0}, [(1, j), (2, number)])],
+                 [(i, 0, {i: 0}, [(1, i), (2, number)]), (j, 0, {}, [])]]
         for s in (s_low, s_high):
-            faces.append([(i, 0.0, {i: 1.0}, [(1, i)]), (j, s / w_j, {i: -w_i / w_j}, [(1, j)])])
-            faces.append([(i, 0.0, {}, []), (j, s / w_j, {}, [])])
-            faces.append([(i, s / w_i, {}, []), (j, 0.0, {}, [])])
+            values += [s / w_j, s / w_i]
+            on_j, on_i = len(values) - 2, len(values) - 1
+            faces.append([(i, 0, {i: 0}, [(1, i)]), (j, on_j, {i: slope}, [(1, j)])])
+            faces.append([(i, 0, {}, []), (j, on_j, {}, [])])
+            faces.append([(i, on_i, {}, []), (j, 0, {}, [])])
         choices.append(faces)
-    anchors, bases, free, checks = [], [], [], []
     kinds = [(0, k) for k in range(count)] + [(1, k) for k in range(count)] + [
         (2, n) for n in range(len(pairs))]
-    for face in itertools.product(*choices):
-        entries = sorted((e for group in face for e in group), key=lambda e: e[0])
-        anchors.append(jnp.stack([jnp.asarray(e[1], dtype) for e in entries]))
-        basis = [[jnp.asarray(0.0, dtype)] * count for _ in range(count)]
-        used = np.zeros(count, dtype=bool)
-        for k, _, terms, _ in entries:
-            for variable, coefficient in terms.items():
-                basis[k][variable] = jnp.asarray(coefficient, dtype)
-                used[variable] = True
-        bases.append(jnp.stack([jnp.stack(row) for row in basis]))
-        free.append(used)
-        wanted = {check for e in entries for check in e[3]}
-        checks.append([kind in wanted for kind in kinds])
-    anchors, bases = jnp.stack(anchors), jnp.stack(bases)          # (F, K), (F, K, K)
-    free, checks = jnp.asarray(np.array(free)), jnp.asarray(np.array(checks))
+    faces = list(itertools.product(*choices))
+    anchor_of = np.zeros((len(faces), count, len(values)))
+    basis_of = np.zeros((len(faces), count, count, len(ratios)))
+    free = np.zeros((len(faces), count), dtype=bool)
+    checks = np.zeros((len(faces), len(kinds)), dtype=bool)
+    for f, face in enumerate(faces):
+        for k, anchor, terms, wanted in (e for group in face for e in group):
+            anchor_of[f, k, anchor] = 1.0
+            for variable, ratio in terms.items():
+                basis_of[f, k, variable, ratio] = 1.0
+                free[f, variable] = True
+            for check in wanted:
+                checks[f, kinds.index(check)] = True
+    values = jnp.stack([jnp.asarray(v, dtype) for v in values])
+    ratios = jnp.stack([jnp.asarray(r, dtype) for r in ratios])
+    anchors = jnp.sum(jnp.asarray(anchor_of, dtype) * values, axis=-1)       # (F, K)
+    bases = jnp.sum(jnp.asarray(basis_of, dtype) * ratios, axis=-1)          # (F, K, K)
+    free, checks = jnp.asarray(free), jnp.asarray(checks)
     # x = a + B y; (B'GB) y = B'(p - G a) over the free y (the others pinned to 0).
-    reduced = jnp.einsum("fki,kl,flj->fij", bases, gram, bases)
+    # Products as broadcast sums, not einsum: XLA on CPU runs a batch of tiny matrix
+    # products (a population times the faces) one small call each, about 10x slower.
+    gram_bases = jnp.sum(gram[None, :, :, None] * bases[:, None, :, :], axis=2)  # G B
+    reduced = jnp.sum(bases[:, :, :, None] * gram_bases[:, :, None, :], axis=1)
     pinned = ~free
     reduced = jnp.where(pinned[:, :, None] | pinned[:, None, :], 0.0, reduced)
     diagonal = jnp.diagonal(reduced, axis1=1, axis2=2)
     reduced = reduced + jnp.eye(count, dtype=dtype) * jnp.where(pinned, 1.0, 0.0)[:, None, :]
-    rhs = jnp.einsum("fki,fk->fi", bases, projections - anchors @ gram)
+    residual = projections - jnp.sum(anchors[:, :, None] * gram[None], axis=1)
+    rhs = jnp.sum(bases * residual[:, :, None], axis=1)
     rhs = jnp.where(free, rhs, 0.0)
     # Cholesky unrolled over the K coordinates, vectorised over the faces: no LAPACK call
     # (LAPACK's custom calls were seen to hang XLA on CPU with several threads or devices,
@@ -368,7 +384,7 @@ def polytope_least_squares(gram, projections, total, low, high, pairs=()):
     y, pivots = _cholesky_solve(rows, [rhs[:, i] for i in range(count)], with_pivots=True)
     y = jnp.stack(y, axis=1)
     regular = jnp.all(pinned | (jnp.stack(pivots, axis=1) > PIVOT_TOLERANCE * diagonal), axis=1)
-    x = anchors + jnp.einsum("fkj,fj->fk", bases, y)
+    x = anchors + jnp.sum(bases * y[:, None, :], axis=2)
     satisfied = [(x >= low) & (x <= high)]  # kind 0
     satisfied.append(x >= 0)  # kind 1
     sums = [w_i * x[:, i] + w_j * x[:, j] for i, j, w_i, w_j, *_ in pairs]
@@ -377,7 +393,8 @@ def polytope_least_squares(gram, projections, total, low, high, pairs=()):
                                     for total_, p in zip(sums, pairs)], axis=1))
     satisfied = jnp.concatenate(satisfied, axis=1)
     inside = jnp.all(~checks | satisfied, axis=1)
-    value = total - 2 * x @ projections + jnp.einsum("fk,kl,fl->f", x, gram, x)
+    value = total - 2 * jnp.sum(x * projections, axis=1) + jnp.sum(
+        x * jnp.sum(x[:, None, :] * gram[None], axis=2), axis=1)
     value = jnp.where(regular & inside & ~jnp.isnan(value), value, jnp.inf)
     best = jnp.argmin(value)
     return x[best], jnp.maximum(value[best], 0.0)
