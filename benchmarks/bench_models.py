@@ -359,6 +359,30 @@ def bench_command(repeats):
                   f"{load_average()}.")
 
 
+def bench_ranking():
+    """`brdfjax models` (its default candidates) on the runs kept: the ranking by cv_error,
+    and the best sum's cv_error against the best single model's."""
+    from brdfjax.selection import compare_models
+
+    rows = []
+    for label, data in real_runs():
+        comparison = compare_models(data)
+        scores = {s.name: s.cv_error for s in comparison.scores}
+        single = min((v, k) for k, v in scores.items() if "+" not in k)
+        summed = min((v, k) for k, v in scores.items() if "+" in k)
+        ranking = ", ".join(f"{name} {100 * scores[name]:.3g}" for name in comparison.ranking)
+        rows.append(f"| {label} | {comparison.best.name} | {summed[1]} {100 * summed[0]:.3g} | "
+                    f"{single[1]} {100 * single[0]:.3g} | {summed[0] / single[0]:.2f} | "
+                    f"{ranking} |")
+        print(rows[-1], flush=True)
+    write_section("models-ranking" + SUFFIX, "## `brdfjax models`: the ranking with sums\n\n"
+                  "Default candidates, seed 0, cv_error (%) of each (the mean held-out E of the "
+                  "interior incidences). Target (issue 24): a sum first on the Singularity "
+                  "runs, at most 0.5x the best single model's cv_error." + subset_note()
+                  + "\n\n| run | first | best sum | best single | sum / single | ranking "
+                  "(cv_error %) |\n|---|---|---|---|---|---|\n" + "\n".join(rows))
+
+
 # --- the paper's model, before and after -----------------------------------------------
 
 def paper_worker(tree: str, repeats: int) -> dict:
@@ -481,7 +505,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true",
                         help="fewer seeds, repeats and samples; print, write nothing")
-    parser.add_argument("--only", nargs="*", help="sections: real synthetic speed cv command paper")
+    parser.add_argument("--only", nargs="*", help="sections: real synthetic speed cv command ranking paper")
     parser.add_argument("--models", nargs="*", help="models (default: every model)")
     parser.add_argument("--seeds", type=int, help="synthetic seeds per model (default 20)")
     parser.add_argument("--decide", type=int, default=5,
@@ -513,6 +537,7 @@ def main() -> None:
         "speed": lambda: bench_speed(models, 3 if args.quick else 7),
         "cv": lambda: bench_cv(models),
         "command": lambda: bench_command(3 if args.quick else 5),
+        "ranking": bench_ranking,
         "paper": lambda: bench_paper(args.base, 1 if args.quick else 2,
                                      args.batch_samples or (16 if args.quick else 256)),
     }
