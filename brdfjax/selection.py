@@ -109,10 +109,28 @@ class Comparison:
         return "\n".join(lines)
 
 
+# cv_errors within this relative (and absolute) distance of the lowest are a tie, which the
+# model with fewer parameters wins: a sum whose second part is switched off (weight at its
+# lower bound) predicts exactly as its first part alone, and noise-free data of one model
+# are predicted to rounding by any sum containing it.
+TIE_RELATIVE = 1e-6
+TIE_ABSOLUTE = 1e-12
+
+
 def ranked(cv_errors: dict) -> list:
-    """Model names by cv_error, lowest first; a NaN (no interior fold) ranks last."""
-    return sorted(cv_errors, key=lambda name: cv_errors[name] if np.isfinite(cv_errors[name])
-                  else np.inf)
+    """Model names by cv_error, lowest first; a NaN (no interior fold) ranks last. Models
+    tied with the lowest (`TIE_RELATIVE`, `TIE_ABSOLUTE`) come first by parameter count,
+    fewest first."""
+    from brdfjax.models import get
+
+    order = sorted(cv_errors, key=lambda name: cv_errors[name] if np.isfinite(cv_errors[name])
+                   else np.inf)
+    if not order or not np.isfinite(cv_errors[order[0]]):
+        return order
+    best = cv_errors[order[0]]
+    tied = [n for n in order if cv_errors[n] <= best * (1 + TIE_RELATIVE) + TIE_ABSOLUTE]
+    tied.sort(key=lambda name: (get(name).size, cv_errors[name]))
+    return tied + [n for n in order if n not in tied]
 
 
 def information_criteria(result, data: Measurements) -> tuple[float, float]:
