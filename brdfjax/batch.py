@@ -63,6 +63,7 @@ from brdfjax.fitting import (
     fit_result,
     polish_summary,
     search_summary,
+    solved_fit,
 )
 from brdfjax.measurements import DataError, Measurements, validate
 from brdfjax.models import Model, get
@@ -220,8 +221,8 @@ def _run_chunk(problems: list[Problem], seeds, bounds, config, devices, chunk_si
     if shared:
         scene = padded_scene(problems[0].scene, points)
     else:
-        scene = type(problems[0].scene)(*(np.stack(fields) for fields in zip(
-            *(padded_scene(problems[i].scene, points) for i in chosen))))
+        scene = jax.tree.map(lambda *fields: np.stack(fields),
+                             *(padded_scene(problems[i].scene, points) for i in chosen))
     config = EvolveConfig() if config is None else config
     block = lanes // len(devices)
     per_sample = (np.asarray(seeds)[chosen], targets, weights, None if shared else scene)
@@ -272,6 +273,11 @@ def _fit_chunk(seeds, scene, target, weight, bounds: Bounds, config: EvolveConfi
     Returns:
         The batched `EvolveResult` and `PolishResult`, leading axis B.
     """
+
+    if model.searched_size == 0:  # a linear model (Ross-Li, Lambert): one exact solve
+        return across_samples(lambda scene, target, weight: solved_fit(
+            Problem(scene, target, weight, model), bounds, max_generations), scene,
+            (target, weight), None)
 
     def search(scene, seed, target, weight):
         return evolve(jax.random.key(seed), Problem(scene, target, weight, model), bounds, config,

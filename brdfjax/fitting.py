@@ -19,11 +19,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from brdfjax.bounds import Bounds, default_bounds, from_unit, to_free, to_unit
+from brdfjax.cache import stage
 from brdfjax.evolve import EvolveConfig, EvolveResult, evolve
 from brdfjax.measurements import DataError, Measurements
 from brdfjax.model import FIVE
 from brdfjax.models import Model, get
 from brdfjax.objective import (
+    Problem,
     prepare,
     problem,
     projected,
@@ -175,12 +177,23 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
     train, held = split(with_loss(data, loss), validate_incidences_deg)
     prob = problem(train, model)
     timings, history, evaluations = {}, np.zeros(0), 0
+    method_ran = method
     begin = time.perf_counter()
     search = prob
     if method == "hybrid" and len(train) > DENSE_POINTS:
         search = problem(representative(train, SEARCH_POINTS), model)
 
-    if method != "lm":
+    if method != "lm" and model.searched_size == 0:
+        # Nothing to search (Ross-Li, Lambert): E is a convex quadratic of the linear
+        # coefficients over their box, and the exact solve is the fit; LM adds nothing.
+        tic = time.perf_counter()
+        searched, polished = _solved_fit(prob, bounds, max_generations=max_generations)
+        polished.errors.block_until_ready()
+        timings["solve"] = time.perf_counter() - tic
+        best, status, evaluations = polish_summary(polished)
+        steps, success = np.asarray(polished.steps), np.asarray(polished.success)
+        method_ran = "solve"
+    elif method != "lm":
         tic = time.perf_counter()
         searched = evolve(seed, search, bounds, config, population_size=population_size,
                           max_generations=max_generations)
@@ -188,7 +201,9 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
         timings["evolve"] = time.perf_counter() - tic
         history, evaluations = search_summary(searched, population_size)
 
-    if method == "ga":
+    if method_ran == "solve":
+        pass
+    elif method == "ga":
         best = from_unit(np.asarray(searched.population)[np.argmin(searched.errors)], bounds)
         status, steps, success = "search_only", np.zeros(0, int), np.zeros(0, bool)
     else:
@@ -215,6 +230,38 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
                       geometry=None if len(held) else prob.scene, method=method,
                       status=status, evaluations=evaluations, lm_steps=steps,
                       lm_success=success, timings=timings, history=history)
+
+
+def solved_fit(prob: Problem, bounds: Bounds, max_generations: int = 40):
+    """The fit of a model with nothing to search: one exact linear solve
+    (`brdfjax.objective.solve_linear`), laid out as a search and a one-start polish.
+
+    Returns:
+        (`brdfjax.evolve.EvolveResult` of the one solved member, no generation bred;
+        `brdfjax.polish.PolishResult` of it, 0 LM steps, successful where E is finite).
+    """
+    import jax.numpy as jnp
+
+    from brdfjax.bounds import to_free as free_of
+    from brdfjax.evolve import EvolveResult
+    from brdfjax.objective import solve_linear
+
+    dtype = prob.target.dtype
+    bounds = Bounds(*(jnp.asarray(b, dtype) if k < 2 else jnp.asarray(b)
+                      for k, b in enumerate(bounds)))
+    params, value = solve_linear(from_unit(jnp.full(prob.model.size, 0.5, dtype), bounds),
+                                 prob, bounds)
+    value = jnp.where(jnp.isnan(value), jnp.inf, value)
+    unit = to_unit(params, bounds)
+    searched = EvolveResult(unit[None], value[None],
+                            jnp.full(max_generations, jnp.nan, dtype), jnp.asarray(0))
+    polished = PolishResult(free_of(params, bounds)[None], params[None], value[None],
+                            jnp.isfinite(value)[None], jnp.zeros(1, jnp.result_type(int)),
+                            jnp.asarray(1, jnp.result_type(int)))
+    return searched, polished
+
+
+_solved_fit = stage(solved_fit, static_argnames=("max_generations",))
 
 
 def representative(data: Measurements, count: int) -> Measurements:
@@ -293,6 +340,7 @@ def fit_result(data, train, held, vector, bounds, model, geometry=None,
     (status, timings, ...).
     `brdfjax.batch` builds each sample's result with it too."""
     geometry = prepare(data, model) if geometry is None else geometry
+    vector = np.asarray(model.canonical(vector, bounds), dtype=float)  # a sum's lobes ordered
     fitted = np.asarray(projected(vector, geometry, model))[:len(data)]  # padded geometry
     target, weight = targets(data)
     is_held = data.incidence_mask(held.incidences_deg)

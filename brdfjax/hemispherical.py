@@ -80,6 +80,12 @@ def hemisphere_nodes(theta_i, radial_nodes: int, azimuth_nodes: int, mirrored: b
 
 
 def _rho(params, theta_i, model, radial_nodes, azimuth_nodes):
+    # A sum of models: each part on nodes around its own peak (reflectance is linear in f_r).
+    return sum(_rho_one(part_params, theta_i, part, radial_nodes, azimuth_nodes)
+               for part, part_params in model.components(params))
+
+
+def _rho_one(params, theta_i, model, radial_nodes, azimuth_nodes):
     theta_r, phi_r, weight = hemisphere_nodes(theta_i, radial_nodes, azimuth_nodes,
                                               mirrored=model.peak == "specular")
     f = evaluate(params, model.geometry(theta_i, theta_r, phi_r, in_plane=False), model)

@@ -120,15 +120,18 @@ def laplace_approximation(data: Measurements, fit, *, draws: int = 2000, seed: i
     messages = _flags(center[:size], post.model.names, condition, condition_limit,
                       {post.model.names[k] for k in np.flatnonzero(~inside[:size])})
     trustworthy = not messages
+    idle = post.model.idle_parts(physical(center[None, :size], post)[0], post.bounds)
+    messages += idle  # a sum's part of zero weight: its shape's intervals mean nothing
+    trustworthy = trustworthy and not idle
     warning = chi2_warning(center, post)
     if warning:
         messages.append(warning)
-    if post.ndim > 5:  # flagged, not untrustworthy: the parameters' intervals still hold
-        lower, upper = np.asarray(post.lower)[5:], np.asarray(post.upper)[5:]
-        for k in np.flatnonzero(_at_edge(center[5:], lower, upper)):
-            side = "lower" if center[5 + k] < (lower[k] + upper[k]) / 2 else "upper"
-            messages.append(f"the noise scale {post.names[5 + k]} sits at the {side} edge of "
-                            f"its prior ({10.0 ** center[5 + k]:.3g}): the data do not "
+    if post.ndim > size:  # flagged, not untrustworthy: the parameters' intervals still hold
+        lower, upper = np.asarray(post.lower)[size:], np.asarray(post.upper)[size:]
+        for k in np.flatnonzero(_at_edge(center[size:], lower, upper)):
+            side = "lower" if center[size + k] < (lower[k] + upper[k]) / 2 else "upper"
+            messages.append(f"the noise scale {post.names[size + k]} sits at the {side} edge "
+                            f"of its prior ({10.0 ** center[size + k]:.3g}): the data do not "
                             "determine it, and it has no interval")
     for text in messages:
         warnings.warn(text, UncertaintyWarning, stacklevel=2)

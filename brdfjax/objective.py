@@ -69,8 +69,9 @@ def pad(values, length: int, fill=None) -> np.ndarray:
 
 
 def padded_scene(geometry: NamedTuple, length: int) -> NamedTuple:
-    """A geometry extended to ``length`` points with copies of its first point."""
-    return type(geometry)(*(pad(x, length) for x in geometry))
+    """A geometry extended to ``length`` points with copies of its first point (every
+    array of it: a sum's geometry nests its parts')."""
+    return jax.tree.map(lambda x: pad(x, length), geometry)
 
 
 def prepare(data: Measurements, model: Model = FIVE, dtype=jnp.float64) -> NamedTuple:
@@ -225,11 +226,19 @@ def solve_linear(params, prob: Problem, bounds: Bounds):
     projections = [(w * t) @ s for s in scaled]
     to_x = jnp.stack([jnp.asarray(x, dtype=c.dtype) for x in to_x])
     low, high = model.coefficient_bounds(bounds)
-    pair = model.scale_sum(bounds)
-    if pair is not None:  # x_0 / to_x_0 + x_1 / to_x_1 within the scale's bounds
-        pair = ((1.0 / to_x[0], 1.0 / to_x[1]), *pair)
-    x, value = box_least_squares(gram, projections, jnp.sum(w * t * t), low * to_x, high * to_x,
-                                 pair)
+    pairs = model.scale_sums(bounds)
+    total = jnp.sum(w * t * t)
+    if count <= 3 and all(p[:2] == (0, 1) for p in pairs):  # every single model
+        pair = pairs[0] if pairs else None
+        if pair is not None:  # x_0 / to_x_0 + x_1 / to_x_1 within the scale's bounds
+            pair = ((1.0 / to_x[0], 1.0 / to_x[1]), *pair[2:])
+        x, value = box_least_squares(gram, projections, total, low * to_x, high * to_x, pair)
+    else:  # sums of models: more coefficients, or several bounded sums
+        pairs = [(i, j, 1.0 / to_x[i], 1.0 / to_x[j], s_low, s_high)
+                 for i, j, s_low, s_high in pairs]
+        x, value = polytope_least_squares(jnp.stack([jnp.stack(row) for row in gram]),
+                                          jnp.stack(projections), total, low * to_x,
+                                          high * to_x, pairs)
     coefficients = jnp.clip(x / to_x, low, high)
     return model.assemble(coefficients, params, bounds), value
 
@@ -287,6 +296,110 @@ def box_least_squares(gram, projections, total, low, high, pair=None):
     return jnp.stack(candidates)[best], jnp.maximum(values[best], 0.0)
 
 
+def polytope_least_squares(gram, projections, total, low, high, pairs=()):
+    """`box_least_squares` for more coefficients and several bounded pairs, vectorised.
+
+    The same exact method (a convex quadratic's minimum over a polytope is the free minimum
+    of one of its faces; every face is tried and the best one whose solution is feasible
+    wins), with the faces as arrays rather than unrolled code, so that a sum of models
+    (``ggx+ggx``: 5 coefficients, two bounded pairs, 243 faces) compiles in about the time
+    of one face. Each coordinate outside a pair is free, at its lower or at its upper bound;
+    each pair ``(i, j, w_i, w_j, s_low, s_high)`` (``x_i, x_j >= 0``, ``s_low <= w_i x_i +
+    w_j x_j <= s_high``) takes one of its 9 faces (`_pair_faces`).
+
+    Args:
+        gram: G (K, K); projections: p (K,); total: q(0).
+        low, high: the box (K,) of the coordinates outside the pairs.
+        pairs: the bounded pairs.
+
+    Returns:
+        (x (K,), q(x) clipped at 0).
+    """
+    count = projections.shape[0]
+    dtype = jnp.result_type(total)
+    paired = {k for i, j, *_ in pairs for k in (i, j)}
+    # The faces' structure is static (NumPy); their numbers come from two short traced
+    # vectors: ``values`` (anchors: 0, the bounds, each pair's corners) and ``ratios`` (the
+    # slope -w_i / w_j of each pair's sum edge), so that the traced graph stays small.
+    values = [jnp.asarray(0.0, dtype)] + [low[k] for k in range(count)] + [
+        high[k] for k in range(count)]
+    ratios = [jnp.asarray(1.0, dtype)]
+    # Each coordinate's options: (coordinate, anchor's index in values, {free variable:
+    # index in ratios}, checks), a check being (kind, coordinate or pair number): kind 0
+    # low <= x_k <= high, 1 x_k >= 0, 2 the pair's sum within its bounds.
+    choices = []
+    for k in range(count):
+        if k not in paired:
+            choices.append([[(k, 0, {k: 0}, [(0, k)])], [(k, 1 + k, {}, [])],
+                            [(k, 1 + count + k, {}, [])]])
+    for number, (i, j, w_i, w_j, s_low, s_high) in enumerate(pairs):
+        ratios.append(-w_i / w_j)
+        slope = len(ratios) - 1
+        faces = [[(i, 0, {i: 0}, [(1, i)]), (j, 0, {j: 0}, [(1, j), (2, number)])],
+                 [(i, 0, {}, []), (j, 0, {j: 0}, [(1, j), (2, number)])],
+                 [(i, 0, {i: 0}, [(1, i), (2, number)]), (j, 0, {}, [])]]
+        for s in (s_low, s_high):
+            values += [s / w_j, s / w_i]
+            on_j, on_i = len(values) - 2, len(values) - 1
+            faces.append([(i, 0, {i: 0}, [(1, i)]), (j, on_j, {i: slope}, [(1, j)])])
+            faces.append([(i, 0, {}, []), (j, on_j, {}, [])])
+            faces.append([(i, on_i, {}, []), (j, 0, {}, [])])
+        choices.append(faces)
+    kinds = [(0, k) for k in range(count)] + [(1, k) for k in range(count)] + [
+        (2, n) for n in range(len(pairs))]
+    faces = list(itertools.product(*choices))
+    anchor_of = np.zeros((len(faces), count, len(values)))
+    basis_of = np.zeros((len(faces), count, count, len(ratios)))
+    free = np.zeros((len(faces), count), dtype=bool)
+    checks = np.zeros((len(faces), len(kinds)), dtype=bool)
+    for f, face in enumerate(faces):
+        for k, anchor, terms, wanted in (e for group in face for e in group):
+            anchor_of[f, k, anchor] = 1.0
+            for variable, ratio in terms.items():
+                basis_of[f, k, variable, ratio] = 1.0
+                free[f, variable] = True
+            for check in wanted:
+                checks[f, kinds.index(check)] = True
+    values = jnp.stack([jnp.asarray(v, dtype) for v in values])
+    ratios = jnp.stack([jnp.asarray(r, dtype) for r in ratios])
+    anchors = jnp.sum(jnp.asarray(anchor_of, dtype) * values, axis=-1)       # (F, K)
+    bases = jnp.sum(jnp.asarray(basis_of, dtype) * ratios, axis=-1)          # (F, K, K)
+    free, checks = jnp.asarray(free), jnp.asarray(checks)
+    # x = a + B y; (B'GB) y = B'(p - G a) over the free y (the others pinned to 0).
+    # Products as broadcast sums, not einsum: XLA on CPU runs a batch of tiny matrix
+    # products (a population times the faces) one small call each, about 10x slower.
+    gram_bases = jnp.sum(gram[None, :, :, None] * bases[:, None, :, :], axis=2)  # G B
+    reduced = jnp.sum(bases[:, :, :, None] * gram_bases[:, :, None, :], axis=1)
+    pinned = ~free
+    reduced = jnp.where(pinned[:, :, None] | pinned[:, None, :], 0.0, reduced)
+    diagonal = jnp.diagonal(reduced, axis1=1, axis2=2)
+    reduced = reduced + jnp.eye(count, dtype=dtype) * jnp.where(pinned, 1.0, 0.0)[:, None, :]
+    residual = projections - jnp.sum(anchors[:, :, None] * gram[None], axis=1)
+    rhs = jnp.sum(bases * residual[:, :, None], axis=1)
+    rhs = jnp.where(free, rhs, 0.0)
+    # Cholesky unrolled over the K coordinates, vectorised over the faces: no LAPACK call
+    # (LAPACK's custom calls were seen to hang XLA on CPU with several threads or devices,
+    # see `brdfjax.polish`; this is as fast for K <= 7).
+    rows = [[reduced[:, i, j] for j in range(count)] for i in range(count)]
+    y, pivots = _cholesky_solve(rows, [rhs[:, i] for i in range(count)], with_pivots=True)
+    y = jnp.stack(y, axis=1)
+    regular = jnp.all(pinned | (jnp.stack(pivots, axis=1) > PIVOT_TOLERANCE * diagonal), axis=1)
+    x = anchors + jnp.sum(bases * y[:, None, :], axis=2)
+    satisfied = [(x >= low) & (x <= high)]  # kind 0
+    satisfied.append(x >= 0)  # kind 1
+    sums = [w_i * x[:, i] + w_j * x[:, j] for i, j, w_i, w_j, *_ in pairs]
+    if pairs:
+        satisfied.append(jnp.stack([(total_ >= p[4]) & (total_ <= p[5])
+                                    for total_, p in zip(sums, pairs)], axis=1))
+    satisfied = jnp.concatenate(satisfied, axis=1)
+    inside = jnp.all(~checks | satisfied, axis=1)
+    value = total - 2 * jnp.sum(x * projections, axis=1) + jnp.sum(
+        x * jnp.sum(x[:, None, :] * gram[None], axis=2), axis=1)
+    value = jnp.where(regular & inside & ~jnp.isnan(value), value, jnp.inf)
+    best = jnp.argmin(value)
+    return x[best], jnp.maximum(value[best], 0.0)
+
+
 def _is_zero(value) -> bool:
     return isinstance(value, float) and value == 0.0
 
@@ -341,13 +454,16 @@ def _pair_faces(weights, s_low, s_high):
     return inside + edges + corners
 
 
-def _cholesky_solve(matrix, rhs):
-    """Solve a small SPD system given as nested lists (unrolled); also whether it is regular."""
+def _cholesky_solve(matrix, rhs, with_pivots=False):
+    """Solve a small SPD system given as nested lists (unrolled); also whether it is regular
+    (or, ``with_pivots``, each pivot, for the caller to judge)."""
     size = len(rhs)
     factor = [[None] * size for _ in range(size)]
     regular = jnp.asarray(True)
+    pivots = []
     for j in range(size):
         pivot = matrix[j][j] - sum(factor[j][k] ** 2 for k in range(j))
+        pivots.append(pivot)
         regular = regular & (pivot > PIVOT_TOLERANCE * matrix[j][j])
         root = jnp.sqrt(jnp.where(pivot > 0, pivot, 1.0))
         factor[j][j] = root
@@ -362,4 +478,4 @@ def _cholesky_solve(matrix, rhs):
     for i in reversed(range(size)):
         solution[i] = (forward[i] - sum(factor[k][i] * solution[k]
                                         for k in range(i + 1, size))) / factor[i][i]
-    return solution, regular
+    return (solution, pivots) if with_pivots else (solution, regular)

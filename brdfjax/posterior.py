@@ -623,7 +623,7 @@ def sample_posterior(data: Measurements, fit, *, walkers: int = 32, max_steps: i
     from tqdm import tqdm
 
     emcee = require_emcee()
-    post, _ = training_setup(data, fit, bounds, model, validate_incidences_deg)
+    post, vector = training_setup(data, fit, bounds, model, validate_incidences_deg)
     if walkers < 2 * post.ndim:
         raise ValueError(f"emcee needs at least {2 * post.ndim} walkers for {post.ndim} "
                          f"sampled coordinates, got {walkers}")
@@ -672,7 +672,7 @@ def sample_posterior(data: Measurements, fit, *, walkers: int = 32, max_steps: i
             tau = autocorrelation_time(sampler.get_chain())
             bar.set_postfix(tau=f"{np.max(tau):.1f}")
     timings = {"sampling": time.perf_counter() - tic}
-    return _mcmc_result(sampler, post, tau, chain_path, timings, fitted_of(fit))
+    return _mcmc_result(sampler, post, tau, chain_path, timings, fitted_of(fit), vector)
 
 
 def _converged(tau, steps: int) -> bool:
@@ -680,8 +680,9 @@ def _converged(tau, steps: int) -> bool:
 
 
 def _mcmc_result(sampler, post: Posterior, tau, chain_path, timings,
-                 fitted: dict) -> UncertaintyResult:
-    """Summaries, diagnostics and warnings of a finished emcee run."""
+                 fitted: dict, vector=None) -> UncertaintyResult:
+    """Summaries, diagnostics and warnings of a finished emcee run (``vector``: the fit it
+    started from, whose parts of zero weight a sum of models names)."""
     steps, walkers = int(sampler.iteration), int(sampler.nwalkers)  # numpy ints from HDF5
     finite = np.all(np.isfinite(tau))
     burn_in = min(int(2 * np.max(tau)), steps // 2) if finite else steps // 2
@@ -702,6 +703,8 @@ def _mcmc_result(sampler, post: Posterior, tau, chain_path, timings,
     warning = chi2_warning(np.median(flat, axis=0), post)
     if warning:
         messages.append(warning)
+    if vector is not None:  # a sum of models with a part switched off
+        messages += post.model.idle_parts(vector, post.bounds)
     for text in messages:
         warnings.warn(text, UncertaintyWarning, stacklevel=3)
     noise = noise_summary(post)

@@ -29,6 +29,13 @@ from tqdm import tqdm
 from brdfjax.measurements import Measurements
 
 REFLECTANCE_INCIDENCES = (0.0, 30.0, 60.0)
+# The candidates of `compare_models` by default: the six models of the paper's comparison,
+# the two-lobe sums that predict the hardest real materials best (a back-scatter lobe for
+# the RT-300S black coatings, two GGX lobes for Aeroglaze and anodize), ABg with a diffuse
+# floor (stray light) and Ross-Li (remote sensing). backscatter and abg alone are left out:
+# a lone back-scatter lobe describes no real surface, and abg is abg+lambert without kd.
+DEFAULT_CANDIDATES = ("five", "beckmann", "ggx", "lambert", "rpv", "torrance-sparrow",
+                      "ggx+backscatter", "ggx+ggx", "abg+lambert", "ross-li")
 
 
 @dataclass
@@ -122,10 +129,28 @@ class Comparison:
         return "\n".join(lines)
 
 
+# cv_errors within this relative (and absolute) distance of the lowest are a tie, which the
+# model with fewer parameters wins: a sum whose second part is switched off (weight at its
+# lower bound) predicts exactly as its first part alone, and noise-free data of one model
+# are predicted to rounding by any sum containing it.
+TIE_RELATIVE = 1e-6
+TIE_ABSOLUTE = 1e-12
+
+
 def ranked(cv_errors: dict) -> list:
-    """Model names by cv_error, lowest first; a NaN (no interior fold) ranks last."""
-    return sorted(cv_errors, key=lambda name: cv_errors[name] if np.isfinite(cv_errors[name])
-                  else np.inf)
+    """Model names by cv_error, lowest first; a NaN (no interior fold) ranks last. Models
+    tied with the lowest (`TIE_RELATIVE`, `TIE_ABSOLUTE`) come first by parameter count,
+    fewest first."""
+    from brdfjax.models import get
+
+    order = sorted(cv_errors, key=lambda name: cv_errors[name] if np.isfinite(cv_errors[name])
+                   else np.inf)
+    if not order or not np.isfinite(cv_errors[order[0]]):
+        return order
+    best = cv_errors[order[0]]
+    tied = [n for n in order if cv_errors[n] <= best * (1 + TIE_RELATIVE) + TIE_ABSOLUTE]
+    tied.sort(key=lambda name: (get(name).size, cv_errors[name]))
+    return tied + [n for n in order if n not in tied]
 
 
 def information_criteria(result, data: Measurements) -> tuple[float, float]:
@@ -151,7 +176,8 @@ def compare_models(data: Measurements, models=None, *, seed: int = 0,
 
     Args:
         data: the measurements (at least three incidences, for the interior folds).
-        models: model names (all of `brdfjax.models.available` if None).
+        models: model names, sums such as ``ggx+backscatter`` included
+            (`DEFAULT_CANDIDATES` if None).
         seed: the seed of every fit.
         progress: show a progress bar (tqdm) of the models done.
         discrepancy: ``gp`` also scores each model corrected by its learned discrepancy
@@ -161,7 +187,7 @@ def compare_models(data: Measurements, models=None, *, seed: int = 0,
         A `Comparison`.
     """
     from brdfjax.hemispherical import reflectance
-    from brdfjax.models import available
+    from brdfjax.models import get
     from brdfjax.prediction import calibrate_all
     from brdfjax.validation import cross_validate
 
@@ -174,7 +200,8 @@ def compare_models(data: Measurements, models=None, *, seed: int = 0,
         return ModelScore(name, result, validation, aic, bic,
                           {f"{d:g}": float(r) for d, r in zip(REFLECTANCE_INCIDENCES, rho)})
 
-    names = list(models or available())
+    names = list(models or DEFAULT_CANDIDATES)
+    names = [get(name).name for name in names]  # an unknown name fails here, before any fit
     with (ThreadPoolExecutor(max_workers=os.cpu_count()) as pool,
           tqdm(total=len(names), desc="models", unit="model", disable=not progress) as bar):
         running = [pool.submit(score, name) for name in names]

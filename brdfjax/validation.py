@@ -206,3 +206,26 @@ def cross_validate(data: Measurements, model=None, *, seed: int = 0, bounds=None
             params=result.vector, status=result.status, predicted=values[mask],
             index=np.flatnonzero(mask)))
     return CrossValidation(model.name, folds, results[-1] if full_fit else None)
+
+
+def fit_per_incidence(data: Measurements, model=None, *, seed: int = 0, bounds=None,
+                      **options) -> list:
+    """Each incidence (or incidence bin, `incidence_groups`) fitted on its own, all in one
+    batched call (`brdfjax.batch.fit_batch`): the way stray-light engineers fit ABg, one
+    (A, B, g) per incidence.
+
+    Args:
+        data: the measurements.
+        model: a model name or `brdfjax.models.Model` (the five-parameter model if None).
+        seed, bounds, **options: as for `brdfjax.batch.fit_batch`.
+
+    Returns:
+        ``[(incidence in degrees, FitResult)]`` in incidence order (a bin: the middle of
+        its incidences).
+    """
+    from brdfjax.batch import fit_batch
+
+    groups = incidence_groups(data)
+    samples = [data.select(mask) for *_, mask in groups]
+    results = fit_batch(samples, model=model, seed=seed, bounds=bounds, **options)
+    return [((low + high) / 2, result) for (_, low, high, _), result in zip(groups, results)]

@@ -70,6 +70,9 @@ def models_markdown() -> str:
             inspect.cleandoc(module.__doc__), "",  # Markdown: formulas are indented blocks
             "| parameter | low | high | searched on | why this range |", "|---|---|---|---|---|",
             *rows, ""]))
+    import brdfjax.models.sum as sums
+
+    sections.append("## Sums of models: `A+B`\n\n" + inspect.cleandoc(sums.__doc__) + "\n")
     return "\n".join(sections)
 
 

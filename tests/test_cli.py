@@ -309,3 +309,40 @@ def test_bound_notes_explain_the_kb_b_trade_and_hint_only_where_widening_helps()
     # keyed by names: a model without b gets no degeneracy note
     other, = bound_notes(("kb", "roughness"), (1e-14, 0.3), {"kb": "lower"})
     assert "product" not in other
+
+
+EC1 = DATA / "real" / "uaz-loft-rt300s" / "raw" / "ANOPLATE_AnoBlack_EC1_Alum6061_v1o0_20251115.xls"
+
+
+def test_a_sum_fits_with_its_parameter_names_and_intervals(tmp_path, capsys):
+    """--model A+B is a model like any other: MODELS.md's names in the JSON, Laplace intervals."""
+    out = tmp_path / "sum.json"
+    assert main(["fit", str(EC1), "--model", "ggx+backscatter", "--json", str(out)]) == 0
+    result = json.loads(out.read_text())
+    assert list(result["params"]) == ["ks", "alpha", "f0", "kd", "kb", "beta"]
+    assert result["model"] == "ggx+backscatter" and result["status"] == "converged"
+    assert set(result["uncertainty"]["params"]) == set(result["params"])
+
+
+def test_abg_per_incidence_writes_a_catalog_entry(tmp_path, capsys):
+    """One (A, B, g) row per incidence, the TIS checks and FRED's values printed, and the
+    entry's rows equal to the fits in the JSON."""
+    entry, out = tmp_path / "ec1.txt", tmp_path / "ec1.json"
+    assert main(["fit", str(EC1), "--model", "abg", "--per-incidence", "--abg-out", str(entry),
+                 "--abg-name", "EC1", "--json", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "FRED" in printed and "TIS" in printed
+    lines = entry.read_text().splitlines()
+    assert lines[0] == "EC1 0.65"  # the RT-300S laser, 650 nm
+    rows = json.loads(out.read_text())["abg"]
+    assert len(lines) == 1 + len(rows) == 5
+    for line, row in zip(lines[1:], rows):
+        angle, a, b, g = (float(x) for x in line.split())
+        assert angle == row["incidence_deg"]
+        np.testing.assert_allclose([a, b, g], [row["A"], row["B"], row["g"]], rtol=1e-7)
+
+
+def test_abg_out_needs_abg_per_incidence(tmp_path, capsys):
+    assert main(["fit", str(EC1), "--model", "ggx", "--per-incidence", "--abg-out",
+                 str(tmp_path / "x.txt")]) != 0
+    assert "--model abg" in capsys.readouterr().err

@@ -119,8 +119,53 @@ def rpv(rho0, k, asymmetry, rhoc, ti, tr, pr):
     return rho0 / np.pi * M * F * H
 
 
+def cos_phase(ti, tr, pr):
+    """cos g = w_i . w_r, as MODELS.md writes it."""
+    return np.cos(ti) * np.cos(tr) + np.sin(ti) * np.sin(tr) * np.cos(pr)
+
+
+def backscatter(kb, beta, ti, tr, pr):
+    c = np.maximum(cos_phase(ti, tr, pr), 0)
+    return kb * beta**2 / (np.pi * (c**2 * (beta**2 - 1) + 1) ** 2)
+
+
+def abg(A, B, g, ti, tr, pr):
+    distance = np.hypot(np.sin(tr) * np.cos(pr) + np.sin(ti), np.sin(tr) * np.sin(pr))
+    return A / (B + distance**g)
+
+
+def ross_li(f_iso, f_vol, f_geo, ti, tr, pr, h_b=2.0):
+    """MODIS MCD43 RossThick-LiSparseReciprocal, with arccos and tangents as printed."""
+    cos_xi = cos_phase(ti, tr, pr)
+    xi = np.arccos(np.clip(cos_xi, -1, 1))
+    k_vol = ((np.pi / 2 - xi) * np.cos(xi) + np.sin(xi)) / (np.cos(ti) + np.cos(tr)) - np.pi / 4
+    sec_i, sec_r = 1 / np.cos(ti), 1 / np.cos(tr)
+    D = np.sqrt(np.tan(ti) ** 2 + np.tan(tr) ** 2 - 2 * np.tan(ti) * np.tan(tr) * np.cos(pr))
+    cos_t = np.clip(h_b * np.sqrt(D**2 + (np.tan(ti) * np.tan(tr) * np.sin(pr)) ** 2)
+                    / (sec_i + sec_r), -1, 1)
+    t = np.arccos(cos_t)
+    O = (t - np.sin(t) * np.cos(t)) * (sec_i + sec_r) / np.pi
+    k_geo = O - sec_i - sec_r + (1 + cos_xi) * sec_i * sec_r / 2
+    return (f_iso + f_vol * k_vol + f_geo * k_geo) / np.pi
+
+
+# Sums by MODELS.md's naming rule, the shared kd once, in the first part.
+def ggx_backscatter(ks, alpha, f0, kd, kb, beta, ti, tr, pr):
+    return ggx(ks, alpha, f0, kd, ti, tr, pr) + backscatter(kb, beta, ti, tr, pr)
+
+
+def ggx_ggx(ks, alpha, f0, kd, ks_2, alpha_2, f0_2, ti, tr, pr):
+    return ggx(ks, alpha, f0, kd, ti, tr, pr) + ggx(ks_2, alpha_2, f0_2, 0, ti, tr, pr)
+
+
+def abg_lambert(A, B, g, kd, ti, tr, pr):
+    return abg(A, B, g, ti, tr, pr) + lambert(kd, ti, tr, pr)
+
+
 MODELS = {"five": brdf, "torrance-sparrow": torrance_sparrow, "ggx": ggx,
-          "beckmann": beckmann, "lambert": lambert, "rpv": rpv}
+          "beckmann": beckmann, "lambert": lambert, "rpv": rpv, "backscatter": backscatter,
+          "abg": abg, "ross-li": ross_li, "ggx+backscatter": ggx_backscatter,
+          "ggx+ggx": ggx_ggx, "abg+lambert": abg_lambert}
 
 
 # ---- Eq. (9) by an integrator that shares nothing with brdfjax.hemispherical

@@ -40,7 +40,8 @@ def add_model_option(parser, help_text: str = "the model") -> None:
     that ``--help`` needs no JAX)."""
     parser.add_argument("--model", default="five", metavar="NAME",
                         help=f"{help_text}: five (default), torrance-sparrow, ggx, beckmann, "
-                             "lambert, rpv")
+                             "lambert, rpv, backscatter, abg, ross-li, or a sum A+B such as "
+                             "ggx+backscatter")
 
 
 def angles(text: str) -> np.ndarray:

@@ -64,7 +64,8 @@ def register(subparsers) -> None:
     p.add_argument("--seed", type=int, default=0, help="the seed of every fit (default 0)")
     p.add_argument("--model", default="five", metavar="NAME",
                    help="the model to fit: five (default), torrance-sparrow, ggx, beckmann, "
-                        "lambert, rpv; auto: the lowest median cv_error over the first "
+                        "lambert, rpv, backscatter, abg, ross-li, or a sum such as "
+                        "ggx+backscatter; auto: the lowest median cv_error over the first "
                         f"{AUTO_SAMPLES} samples (brdfjax models on each), for every sample")
     p.add_argument("--bound", action="append", default=[], metavar="NAME=LO:HI",
                    help="override a parameter's search range, e.g. b=-80:10")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import re
 import warnings
 from pathlib import Path
 
@@ -105,6 +106,18 @@ def register(subparsers) -> None:
                    help="incidences of --export's tables (default 0:80:10)")
     p.add_argument("--export-step", type=float, metavar="DEG", default=5.0,
                    help="--export's grid step in scatter angle and azimuth (default 5 deg)")
+    p.add_argument("--per-incidence", action="store_true",
+                   help="fit each incidence on its own (all in one batched call) and print "
+                        "one parameter row per incidence; with --model abg, also the TIS "
+                        "checks and the parameters FRED takes")
+    p.add_argument("--abg-out", metavar="OUT",
+                   help="with --model abg --per-incidence: write the rows as a Zemax ABg "
+                        "data catalog entry (text: NAME WAVELENGTH, then ANGLE A B G rows)")
+    p.add_argument("--abg-name", metavar="NAME",
+                   help="the catalog entry's name (default: the sample's name)")
+    p.add_argument("--wavelength-um", type=float, metavar="UM",
+                   help="the entry's wavelength in micrometres (default: the data's, else 0, "
+                        "which Zemax reads as no wavelength scaling)")
     add_reader_options(p)
     p.set_defaults(run=run_fit)
 
@@ -177,7 +190,8 @@ def run_fit(args) -> None:
     check_writable({**{f"--export {path}": path for path in args.export},
                     "--json": args.json, "--plot": args.plot, "--plot-3d": args.plot_3d,
                     "--plot-corner": args.plot_corner, "--predict-out": args.predict_out,
-                    "--chain": args.chain if args.uncertainty == "mcmc" else None})
+                    "--chain": args.chain if args.uncertainty == "mcmc" else None,
+                    "--abg-out": args.abg_out})
     data = load(args.file, **reader_options(args))
     geometry = None
     if args.predict:  # read and checked like the output paths: before any fitting
@@ -186,6 +200,11 @@ def run_fit(args) -> None:
         geometry = load_geometry(args.predict, **reader_options(args))
     if args.model == "auto":
         args.model = choose_model(data, args.seed)
+    if args.per_incidence:
+        run_per_incidence(data, args)
+        return
+    if args.abg_out:
+        raise ValueError("--abg-out needs --model abg --per-incidence")
     result = fit(data, args.method, model=args.model, seed=args.seed, loss=args.loss,
                  validate_incidences_deg=held_out(data, args),
                  bounds=make_bounds(parse_bounds(args.bound), model=args.model))
@@ -204,6 +223,56 @@ def run_fit(args) -> None:
     if uncertainty is not None:
         print(uncertainty.table(fitted=result.vector, loss=result.loss))
     write_outputs(result, data, args, uncertainty, calibration, prediction)
+
+
+def run_per_incidence(data, args) -> None:
+    """``--per-incidence``: each incidence fitted on its own, in one batched call; with
+    ``--model abg`` the TIS checks, FRED's parameters and the Zemax catalog entry."""
+    from brdfjax.bounds import make_bounds
+    from brdfjax.formats import json_text, write_atomically
+    from brdfjax.models import get
+    from brdfjax.validation import fit_per_incidence
+
+    model = get(args.model)
+    if args.abg_out and model.name != "abg":
+        raise ValueError(f"--abg-out exports ABg rows: use --model abg, not {model.name}")
+    unsupported = [flag for flag, value in (("--plot", args.plot), ("--cv", args.cv),
+                                            ("--predict", args.predict),
+                                            ("--plot-corner", args.plot_corner),
+                                            ("--validate-incidence", args.validate_incidence))
+                   if value]
+    if unsupported:
+        raise ValueError(f"--per-incidence does not combine with {', '.join(unsupported)}")
+    if args.train_incidence is not None:
+        data = data.at_incidences(args.train_incidence)
+    fits = fit_per_incidence(data, model, seed=args.seed,
+                             bounds=make_bounds(parse_bounds(args.bound), model=model))
+    print(f"{data.name}: {len(data)} points, {model.name} fitted at each of {len(fits)} "
+          "incidences on its own")
+    print(f"  {'incidence':>9}  {'E (%)':>8}  {'status':<9} " + " ".join(
+        f"{name:>12}" for name in model.names))
+    for degrees, result in fits:
+        print(f"  {degrees:9g}  {100 * result.error:8.4g}  {result.status:<9} "
+              + " ".join(f"{v:12.5g}" for v in result.vector))
+    payload = {"model": model.name, "per_incidence": [
+        {"incidence_deg": degrees, **result.to_dict()} for degrees, result in fits]}
+    if model.name == "abg":
+        from brdfjax.formats.abg import abg_rows, catalog_entry, report
+
+        rows = abg_rows(fits)
+        print(report(rows))
+        payload["abg"] = [row.to_dict() for row in rows]
+        if args.abg_out:
+            wavelength = args.wavelength_um
+            if wavelength is None:
+                nm = data.metadata.get("wavelength_nm")
+                wavelength = float(nm) / 1000 if nm else 0.0
+            name = args.abg_name or re.sub(r"[^A-Za-z0-9_-]+", "_", data.name)[:32]
+            write_atomically(args.abg_out, catalog_entry(name, rows, wavelength))
+            print(f"Zemax ABg catalog entry {name.upper()} ({wavelength:g} um, {len(rows)} "
+                  f"rows) written to {args.abg_out}")
+    if args.json:
+        write_atomically(args.json, json_text(payload))
 
 
 def failure_reason() -> str:

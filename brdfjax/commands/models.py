@@ -15,8 +15,9 @@ def register(subparsers) -> None:
                     "(what brdfjax fit --predict predicts with).")
     p.add_argument("file", help="the measurement file (any format brdfjax reads)")
     p.add_argument("--models", metavar="A,B,...",
-                   help="models to compare (default: all: five, beckmann, ggx, lambert, rpv, "
-                        "torrance-sparrow)")
+                   help="models to compare, sums A+B included (default: five, beckmann, ggx, "
+                        "lambert, rpv, torrance-sparrow, ggx+backscatter, ggx+ggx, abg+lambert, "
+                        "ross-li)")
     p.add_argument("--seed", type=int, default=0, help="the seed of every fit (default 0)")
     p.add_argument("--discrepancy", choices=("gp", "none"), default="gp",
                    help="gp: also score each model with its learned discrepancy (default); "

@@ -8,10 +8,16 @@
 | ``beckmann`` | ks, alpha, f0, kd | `brdfjax.models.beckmann` |
 | ``lambert`` | kd | `brdfjax.models.lambert` |
 | ``rpv`` | rho0, k, asymmetry, rhoc | `brdfjax.models.rpv` |
+| ``backscatter`` | kb, beta | `brdfjax.models.backscatter` |
+| ``abg`` | A, B, g | `brdfjax.models.abg` |
+| ``ross-li`` | f_iso, f_vol, f_geo | `brdfjax.models.ross_li` |
+| ``A+B`` | the parts', repeats ``_2`` | `brdfjax.models.sum` (any sum: ``ggx+backscatter``) |
 
 A model is found by its module: every module of this package whose name does not start
 with ``_`` is imported on the first lookup, and each `Model` subclass in it with a ``name``
-is registered. Adding a model is therefore one new file (see the README, "Adding a model").
+is registered. Adding a model is therefore one new file (see the README, "Adding a model"),
+and it then takes part in sums with no change elsewhere. A name with ``+`` is a `Sum` of the
+named models (`brdfjax.models.sum`); sums are not listed by `available`.
 """
 
 from __future__ import annotations
@@ -35,7 +41,7 @@ def _discover() -> dict[str, type[Model]]:
                 continue
             for _, cls in inspect.getmembers(importlib.import_module(f"{__name__}.{module.name}"),
                                              inspect.isclass):
-                if issubclass(cls, Model) and "name" in cls.__dict__:
+                if issubclass(cls, Model) and isinstance(cls.__dict__.get("name"), str):
                     _registry[cls.name] = cls
         order = [DEFAULT] + sorted(set(_registry) - {DEFAULT})
         _registry.update({name: _registry.pop(name) for name in order})
@@ -57,10 +63,15 @@ def get(model: str | Model | None = None, constants=None) -> Model:
     """
     if model is None:
         model = DEFAULT
+    if isinstance(model, str) and "+" in model:
+        from brdfjax.models.sum import Sum
+
+        model = Sum(tuple(get(part.strip()) for part in model.split("+")))
     if isinstance(model, str):
         registry = _discover()
         if model not in registry:
-            raise ValueError(f"unknown model {model!r}; choose one of {', '.join(registry)}")
+            raise ValueError(f"unknown model {model!r}; choose one of {', '.join(registry)}, "
+                             "or a sum of them such as ggx+backscatter")
         model = registry[model]()
     if not isinstance(model, Model):
         raise TypeError(f"expected a model name or a brdfjax.models.Model, got {model!r}")

@@ -70,6 +70,9 @@ class SpecularMicrofacet(Model):
 
     linear = ("ks at f0's lower bound", "ks at f0's upper bound", "kd")
     peak = "specular"
+    constant = "kd"
+    scales = ("ks",)
+    order_by = "alpha"
 
     def lobe(self, alpha, geometry: HalfVector):
         """``D G / (4 cos ti cos tr)`` per unit ``ks F``."""

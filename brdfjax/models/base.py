@@ -13,7 +13,10 @@ function: jit, vmap and grad see it as a pytree without leaves) that declares:
   search solves the linear ones exactly and searches only the others (variable
   projection, Golub and Pereyra 1973);
 - optionally `Model.extra_starts` (polish starts of its own) and `Model.peak` (where the
-  reflectance quadrature should put its densest nodes).
+  reflectance quadrature should put its densest nodes);
+- for sums of models (`brdfjax.models.sum`): `Model.constant` (an additive constant term,
+  kept once in a sum), `Model.scales` (the parameters that switch the model off when all
+  sit at their lower bounds) and `Model.order_by` (which orders two lobes of one kind).
 
 Nothing in the engine (objective, search, polish, uncertainty, batch) knows which model
 it runs. Adding a model is one new module in `brdfjax.models` with a `Model` subclass.
@@ -78,6 +81,12 @@ class Model:
         peak: ``backscatter`` or ``specular``: where f_r may be sharply peaked, for the
             reflectance quadrature of Eq. (9); ``none`` for smooth models.
         Params: a named tuple of the parameters (made from `parameters` if not given).
+        constant: the name of a parameter that is an additive constant of f_r (``kd``), or
+            None; it must also be a name of `linear`. A sum keeps one such term only.
+        scales: the parameters that scale the model: all at their lower bounds, the model
+            contributes (almost) nothing, and in a sum its shape is then unidentified.
+        order_by: the parameter that orders two parts of this kind in a sum (the narrower
+            lobe first), or None.
     """
 
     name: ClassVar[str]
@@ -86,10 +95,13 @@ class Model:
     linear: ClassVar[tuple[str, ...]]
     peak: ClassVar[str] = "none"
     Params: ClassVar[type]
+    constant: ClassVar[str | None] = None
+    scales: ClassVar[tuple[str, ...]] = ()
+    order_by: ClassVar[str | None] = None
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
-        if "Params" not in cls.__dict__ and "parameters" in cls.__dict__:
+        if "Params" not in cls.__dict__ and isinstance(cls.__dict__.get("parameters"), tuple):
             cls.Params = collections.namedtuple(
                 f"{cls.__name__}Params", [p.name for p in cls.parameters])
         jax.tree_util.register_static(cls)  # a static pytree: hashable, no leaves
@@ -155,6 +167,27 @@ class Model:
         """Bounds (low, high) of the sum of the first two coefficients, where they are the
         weights of a `mixture` whose sum is a bounded scale (RPV's rho0, GGX's ks); None
         where no coefficients sum to a parameter."""
+
+    def scale_sums(self, bounds) -> list:
+        """Every constrained pair of coefficients: ``[(i, j, low, high)]``, the weights
+        ``i`` and ``j`` of a `mixture` whose sum lies in [low, high]; from `scale_sum` (the
+        first two coefficients) unless a model has several (a sum of models)."""
+        pair = self.scale_sum(bounds)
+        return [] if pair is None else [(0, 1, *pair)]
+
+    def components(self, params) -> list:
+        """``[(model, params)]`` whose f_r add up to this model's: the model itself, or the
+        parts of a sum (the reflectance integrates each around its own peak)."""
+        return [(self, params)]
+
+    def canonical(self, params, bounds):
+        """The one parameter vector (P,) of the equivalent ones that the fit reports (a sum
+        orders its lobes of one kind); ``params`` itself by default."""
+        return params
+
+    def idle_parts(self, params, bounds) -> list[str]:
+        """Sentences on parts of the model whose weight is zero (none but in a sum)."""
+        return []
 
     def extra_starts(self, z, bounds):
         """More polish starts (E, P) in unit-cube coordinates, made from the best member

@@ -103,6 +103,9 @@ class FiveParameter(Model):
     )
     linear = ("kb", "kd")
     peak = "backscatter"
+    constant = "kd"
+    scales = ("kb",)
+    order_by = "kr"
     Params = Params
 
     def geometry(self, theta_i, theta_r, phi_r, in_plane):

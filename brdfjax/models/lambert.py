@@ -27,6 +27,8 @@ class Lambert(Model):
     parameters = (Parameter("kd", 1e-8, 1e2, "log10",
                             "from black coatings to well above any physical albedo (1/pi)"),)
     linear = ("kd",)
+    constant = "kd"
+    scales = ("kd",)
 
     def geometry(self, theta_i, theta_r, phi_r, in_plane):
         theta_i, theta_r, phi_r = broadcast_angles(theta_i, theta_r, phi_r)

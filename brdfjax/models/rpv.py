@@ -67,6 +67,8 @@ class Rpv(Model):
     )
     linear = ("rho0 at rhoc's lower bound", "rho0 at rhoc's upper bound")
     peak = "backscatter"
+    scales = ("rho0",)
+    order_by = "k"
 
     def geometry(self, theta_i, theta_r, phi_r, in_plane):
         theta_i, theta_r, phi_r = broadcast_angles(theta_i, theta_r, phi_r)

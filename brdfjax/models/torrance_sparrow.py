@@ -70,6 +70,8 @@ class TorranceSparrow(Model):
     )
     linear = ("g", "rho0")
     peak = "specular"
+    scales = ("g",)
+    order_by = "c"
 
     def geometry(self, theta_i, theta_r, phi_r, in_plane):
         facets = half_vector(theta_i, theta_r, phi_r)
