@@ -20,7 +20,7 @@ from mkdocs.plugins import event_priority
 from mkdocs.structure.files import File
 
 REPO = Path(__file__).resolve().parents[1]
-EXTRA_FILES = ("benchmarks/compare.png",)
+EXTRA_FILES = ("benchmarks/compare.png", "benchmarks/predictive_bands.png")
 ESCAPED_BAR = "\\|"  # a "|" inside a Markdown table cell
 
 
