@@ -113,13 +113,20 @@ def _unconstrained(value, name):
     return np.log(t / (1 - t))
 
 
+def _kernel(u, dims: int):
+    """The tinygp kernel of hyperparameters ``u`` on ``dims`` inputs (no noise)."""
+    from tinygp import kernels, transforms
+
+    _, amplitude, lengths, _ = _physical(u, dims)
+    return amplitude**2 * transforms.Linear(1.0 / lengths, kernels.ExpSquared())
+
+
 def _process(u, x):
     """The tinygp process of hyperparameters ``u`` on inputs ``x`` (M, D)."""
-    from tinygp import GaussianProcess, kernels, transforms
+    from tinygp import GaussianProcess
 
-    mean, amplitude, lengths, noise = _physical(u, x.shape[-1])
-    kernel = amplitude**2 * transforms.Linear(1.0 / lengths, kernels.ExpSquared())
-    return GaussianProcess(kernel, x, diag=noise**2, mean=mean)
+    mean, _, _, noise = _physical(u, x.shape[-1])
+    return GaussianProcess(_kernel(u, x.shape[-1]), x, diag=noise**2, mean=mean)
 
 
 def _log_likelihood(u, x, r, count):
@@ -169,7 +176,7 @@ _log_probability.defvjp(_log_probability_forward, _log_probability_backward)
 def _covariance(u, x):
     """The covariance matrix of the process of ``u`` on ``x`` (M, M), noise included."""
     _, _, _, noise = _physical(u, x.shape[-1])
-    return _process(u, x).kernel(x, x) + noise**2 * jnp.eye(x.shape[0])
+    return _kernel(u, x.shape[-1])(x, x) + noise**2 * jnp.eye(x.shape[0])
 
 
 @stage
@@ -211,7 +218,7 @@ def _predict(u, x, alpha, whiten, x_test):
     """Mean and standard deviation (noise included) of ``r`` at ``x_test`` (T, D), from
     `_condition`'s ``alpha`` and ``whiten``."""
     mean, amplitude, _, noise = _physical(u, x.shape[-1])
-    cross = _process(u, x).kernel(x_test, x)  # (T, M)
+    cross = _kernel(u, x.shape[-1])(x_test, x)  # (T, M)
     variance = amplitude**2 - jnp.sum((cross @ whiten.T) ** 2, axis=1) + noise**2
     return mean + cross @ alpha, jnp.sqrt(jnp.maximum(variance, noise**2))
 

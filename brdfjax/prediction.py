@@ -205,7 +205,7 @@ def calibrate_all(data: Measurements, validations: list, *,
             full[held] = centre
             corrected[fold.label] = held_out_error(full, data, held)
             if fold.interior:
-                widths.append((process, value[held], mu, sigma, centre))
+                widths.append((value[held], mu, sigma))
         next(values)
         full_process = next(processes)
         candidates = [Calibration(*_split(validation.folds, found), **common,
@@ -225,15 +225,22 @@ def _median_width(calibration: Calibration, interior: list) -> float:
     if not np.isfinite(q) or not interior:
         return np.inf
     widths = []
-    for process, value, mu, sigma, centre in interior:
-        if calibration.score == "sigma":
-            with np.errstate(over="ignore", invalid="ignore"):
-                half = (process.correct(value, mu + q * sigma)
-                        - process.correct(value, mu - q * sigma)) / 2
-        else:
-            half = q * (np.abs(centre) + calibration.floor)
-        widths.append(half / np.abs(centre))
+    for value, mu, sigma in interior:
+        centre = calibration.discrepancy.correct(value, mu)
+        low, high = _interval(calibration, q, value, centre, mu, sigma)
+        widths.append((high - low) / 2 / np.abs(centre))
     return float(np.median(np.concatenate(widths)))
+
+
+def _interval(calibration: Calibration, q, values, centre, mu, sigma):
+    """``(low, high)`` at factor ``q`` around ``centre`` (the model's ``values``, corrected
+    by ``mu`` where there is a discrepancy), in the form of ``calibration.score``."""
+    if calibration.discrepancy is None or calibration.score == "relative":
+        scale = np.abs(centre) + calibration.floor
+        return centre - q * scale, centre + q * scale
+    with np.errstate(over="ignore", invalid="ignore"):
+        return (calibration.discrepancy.correct(values, mu - q * sigma),
+                calibration.discrepancy.correct(values, mu + q * sigma))
 
 
 def _interior(validation) -> tuple:
@@ -355,27 +362,16 @@ def predict(result, geometry: Measurements, calibration: Calibration | None = No
                                     result.model))
     incidence = np.degrees(geometry.theta_i)
     outside = (incidence < calibration.low - 1e-6) | (incidence > calibration.high + 1e-6)
-    bounds = {}
     process = calibration.discrepancy
-    if process is None or calibration.score == "relative":
-        centre = values
-        if process is not None:
-            centre = process.correct(values, process.predict(
-                geometry.theta_i, geometry.theta_r, geometry.phi_r)[0])
-        scale = np.abs(centre) + calibration.floor
-        for name, level in LEVELS.items():
-            q = np.where(outside, calibration.factor(level, True),
-                         calibration.factor(level, False))
-            bounds[f"lo{name}"], bounds[f"hi{name}"] = centre - q * scale, centre + q * scale
-    else:
+    centre, mu, sigma = values, None, None
+    if process is not None:
         mu, sigma = process.predict(geometry.theta_i, geometry.theta_r, geometry.phi_r)
         centre = process.correct(values, mu)
-        for name, level in LEVELS.items():
-            q = np.where(outside, calibration.factor(level, True),
-                         calibration.factor(level, False))
-            with np.errstate(over="ignore", invalid="ignore"):
-                bounds[f"lo{name}"] = process.correct(values, mu - q * sigma)
-                bounds[f"hi{name}"] = process.correct(values, mu + q * sigma)
+    bounds = {}
+    for name, level in LEVELS.items():
+        q = np.where(outside, calibration.factor(level, True), calibration.factor(level, False))
+        bounds[f"lo{name}"], bounds[f"hi{name}"] = _interval(calibration, q, values, centre,
+                                                              mu, sigma)
     notes = []
     low, high = calibration.reach
     beyond = (incidence < low - 1e-6) | (incidence > high + 1e-6)

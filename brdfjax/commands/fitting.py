@@ -16,9 +16,9 @@ from brdfjax.commands import (
     check_writable,
     reader_options,
 )
+from brdfjax.prediction import DISCREPANCIES  # NumPy only: --help imports no JAX
 
 DATA = Path(__file__).resolve().parents[2] / "data"
-DISCREPANCIES = ("gp", "none")  # brdfjax.prediction.DISCREPANCIES, without importing JAX
 # --predict with the default model names another model when that one's held-out error is
 # this many times lower.
 BETTER_MODEL_FACTOR = 2.0
@@ -504,10 +504,10 @@ def export(path, result, data, args, correction) -> None:
     """Write ``--export``'s table (`brdfjax.formats.zemax.write_model` or
     `brdfjax.formats.astm.write_model_astm`) on the ``--export-*`` grid, and say its TIS."""
     from brdfjax.formats.astm import write_model_astm
-    from brdfjax.formats.zemax import tis, write_model, zemax_to_angles
+    from brdfjax.formats.zemax import model_table, tis, write_model
 
     step = args.export_step
-    incidences = np.asarray(args.export_incidences, float)
+    incidences = np.sort(np.asarray(args.export_incidences, float))
     options = {"sample": data.name, "model": result.model, "correction": correction,
                "wavelength_nm": data.metadata.get("wavelength_nm")}
     azimuths, radials = np.arange(0, 180 + step / 2, step), np.arange(0, 90 + step / 2, step)
@@ -517,16 +517,9 @@ def export(path, result, data, args, correction) -> None:
         write_model_astm(path, result.params, incidences, np.arange(0, 90, step), azimuths,
                          **options)
         # the TIS of the same prediction on Zemax's grid, for comparison with the .bsdf
-        from brdfjax.formats.zemax import evaluate_model
-
-        totals = []
-        for aoi in incidences:
-            a, r = np.meshgrid(azimuths, radials, indexing="ij")
-            theta_r, phi_r = zemax_to_angles(aoi, a, r)
-            values = evaluate_model(result.params, aoi, np.minimum(theta_r, 90.0), phi_r,
-                                    result.model, correction)
-            totals.append(tis(np.where(theta_r < 90.0 - 1e-9, values, 0.0), aoi, azimuths,
-                              radials))
+        _, _, _, table = model_table(result.params, incidences, azimuths, radials,
+                                     result.model, correction)
+        totals = [tis(block, aoi, azimuths, radials) for aoi, block in zip(incidences, table)]
     what = "model x learned discrepancy" if correction is not None else "model"
     print(f"{path}: {what} on a {step:g} deg grid; TIS at "
           + ", ".join(f"{aoi:g} deg {t:.4g}" for aoi, t in zip(incidences, totals)))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from brdfjax.commands import add_reader_options, reader_options
+from brdfjax.prediction import DISCREPANCIES  # NumPy only: --help imports no JAX
 
 
 def register(subparsers) -> None:
@@ -19,7 +20,7 @@ def register(subparsers) -> None:
                         "lambert, rpv, torrance-sparrow, ggx+backscatter, ggx+ggx, abg+lambert, "
                         "ross-li)")
     p.add_argument("--seed", type=int, default=0, help="the seed of every fit (default 0)")
-    p.add_argument("--discrepancy", choices=("gp", "none"), default="gp",
+    p.add_argument("--discrepancy", choices=DISCREPANCIES, default="gp",
                    help="gp: also score each model with its learned discrepancy (default); "
                         "none: the analytic models alone")
     p.add_argument("--json", metavar="OUT", help="write the comparison as JSON")

@@ -431,18 +431,27 @@ def write_model(path, params, incidences_deg, azimuths_deg=tuple(range(0, 181, 1
     Returns:
         The TIS of each incidence's table (as written in the file).
     """
+    incidences, azimuths, radials, table = model_table(
+        params, incidences_deg, azimuths_deg, radial_deg, model, correction)
+    comments = [f"Sample: {sample}", model_comment(model, correction),
+                parameter_comment(params, model)]
+    if wavelength_nm is not None:
+        comments.append(f"wavelength_nm: {wavelength_nm:g}")
+    return _write_table(path, "Model", incidences, azimuths, radials, table, comments)
+
+
+def model_table(params, incidences_deg, azimuths_deg, radial_deg, model=None,
+                correction=None):
+    """A model's table on Zemax's grid: ``(incidences, azimuths, radials, table)``, the
+    angles sorted (degrees) and the table (incidence, azimuth, radial) of its BRDF (1/sr),
+    0 at and below the horizon (``correction``: as `evaluate_model` takes it)."""
     incidences, azimuths, radials = (np.sort(np.asarray(x, dtype=float).reshape(-1))
                                      for x in (incidences_deg, azimuths_deg, radial_deg))
     aoi, azimuth, radial = np.meshgrid(incidences, azimuths, radials, indexing="ij")
     theta_r, phi_r = zemax_to_angles(aoi, azimuth, radial)
     above = theta_r < HORIZON_DEG - 1e-9
     values = evaluate_model(params, aoi, np.minimum(theta_r, 90.0), phi_r, model, correction)
-    table = np.where(above, values, 0.0)
-    comments = [f"Sample: {sample}", model_comment(model, correction),
-                parameter_comment(params, model)]
-    if wavelength_nm is not None:
-        comments.append(f"wavelength_nm: {wavelength_nm:g}")
-    return _write_table(path, "Model", incidences, azimuths, radials, table, comments)
+    return incidences, azimuths, radials, np.where(above, values, 0.0)
 
 
 def evaluate_model(params, theta_i_deg, theta_r_deg, phi_r_deg, model=None,
