@@ -5,7 +5,7 @@
 
 Samples are synthetic: the paper's five samples in turn, each parameter scaled by
 ``exp(0.1 N(0, 1))``, on the paper's 716-point geometry (incidence 10/30/45/60 deg, 179
-points each), 2.5 % relative noise with its own seed (`brdfjax.synthetic.synthesize`).
+points each), 2.5 % relative noise with its own seed (`brdfjax.data.synthetic.synthesize`).
 
 Every batch runs in a fresh subprocess (``--worker``): the CPU device count must be set
 before JAX starts, and the peak resident memory it reports (``ru_maxrss``) is then that
@@ -32,7 +32,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from benchmarks.report import worker_json, write_section
-from brdfjax.batch import POLISH_BATCH, SEARCH_BATCH
+from brdfjax.fitting.batch import POLISH_BATCH, SEARCH_BATCH
 
 # (search_batch, polish_batch) pairs timed against each other, and brdfjax's defaults.
 STRATEGIES = ((None, None), (None, 1), (16, 16), (4, 4), (1, 1))
@@ -48,8 +48,8 @@ def _settings(options: dict) -> str:
 
 def samples(count: int, first: int = 0) -> list:
     """``count`` synthetic 716-point samples (see the module docstring)."""
-    from brdfjax.model import PAPER_SAMPLES
-    from brdfjax.synthetic import paper_geometry, synthesize
+    from brdfjax.data.synthetic import paper_geometry, synthesize
+    from brdfjax.models.paper import PAPER_SAMPLES
 
     geometry = paper_geometry("cement")  # the four-incidence, 716-point scan
     names = list(PAPER_SAMPLES)
@@ -67,8 +67,8 @@ def worker(count: int, batches: dict, repeats: int, compare_single: bool,
     """Time `fit_batch` on ``count`` samples in this process; optionally single fits too."""
     import jax
 
-    from brdfjax.batch import fit_batch, use_every_core
-    from brdfjax.fitting import fit
+    from brdfjax.fitting.batch import fit_batch, use_every_core
+    from brdfjax.fitting.fit import fit
 
     use_every_core()  # single-threaded devices, as `brdfjax batch` runs (device count kept)
     data = samples(count)
@@ -174,7 +174,7 @@ def main() -> None:
                                 args.compare_single, json.loads(args.settings))))
         return
 
-    from brdfjax.batch import FIT_DEFAULTS
+    from brdfjax.fitting.batch import FIT_DEFAULTS
 
     count = 32 if args.quick else 256
     cores = os.cpu_count()
@@ -235,7 +235,7 @@ def main() -> None:
          f"default fit ({_settings(FIT_DEFAULTS)}), on "
          f"{cores} single-threaded CPU devices (`XLA_FLAGS=--xla_force_host_platform_device_"
          f"count={cores} --xla_cpu_multi_thread_eigen=false`, which `brdfjax batch` sets by "
-         "itself: `brdfjax.batch.use_every_core`) unless said otherwise. Each batch runs "
+         "itself: `brdfjax.fitting.batch.use_every_core`) unless said otherwise. Each batch runs "
          "in a fresh process; peak memory is that process's `ru_maxrss` (JAX runtime and "
          "compiled code included; the 1-sample row is the floor). CPU is the process's "
          "user + system time; load is the machine's 1-minute load average after the run: "

@@ -47,8 +47,8 @@ def make_cube(path, count: int, seed: int = 0) -> None:
     """The synthetic cube of the module docstring."""
     import jax
 
-    from brdfjax.formats.cube import write_cube
-    from brdfjax.model import PAPER_SAMPLES, brdf
+    from brdfjax.data.formats.cube import write_cube
+    from brdfjax.models.paper import PAPER_SAMPLES, brdf
 
     rng = np.random.default_rng(seed)
     theta_i = np.repeat([10.0, 30.0, 45.0, 60.0], 16)
@@ -104,8 +104,8 @@ def kill_and_resume(cube, out, env, count: int, chunk: int) -> tuple[int, dict]:
 
 
 def bench_cube(count: int, subset: int, quick: bool) -> None:
-    from brdfjax.fitting import fit
-    from brdfjax.formats.cube import Cube
+    from brdfjax.data.formats.cube import Cube
+    from brdfjax.fitting.fit import fit
 
     folder = Path(tempfile.mkdtemp(prefix="brdfjax-cube-"))
     env = {**os.environ, "BRDFJAX_CACHE": str(folder / "cache"), "PYTHONPATH": str(REPO)}
@@ -200,7 +200,7 @@ def bench_lanes(quick: bool) -> None:
 
 
 def lanes_worker(count: int) -> None:
-    from brdfjax.batch import fit_batch, use_every_core
+    from brdfjax.fitting.batch import fit_batch, use_every_core
 
     use_every_core()
     from brdfjax.cache import enable
@@ -208,7 +208,7 @@ def lanes_worker(count: int) -> None:
     folder = Path(tempfile.mkdtemp(prefix="brdfjax-lanes-"))
     enable(folder / "cache")
     make_cube(folder / "cube.h5", count)
-    from brdfjax.formats.cube import Cube
+    from brdfjax.data.formats.cube import Cube
 
     with Cube(folder / "cube.h5") as cube:
         samples = cube.read(np.arange(count))

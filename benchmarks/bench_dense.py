@@ -8,7 +8,7 @@ theta_r every 1 deg from 0 to 89, phi_r every 1.6 deg all round (101 250 points;
 scans thin phi_r and theta_r). Every fit runs in a fresh process, twice (the second,
 warm run is timed); peak memory is that process's ``ru_maxrss`` (JAX and compiled code
 included). "all points" is the fit with the dense path switched off
-(`brdfjax.fitting.DENSE_POINTS` above the point count): what brdfjax did before.
+(`brdfjax.fitting.fit.DENSE_POINTS` above the point count): what brdfjax did before.
 
 Sections: ``dense`` (the 101 250-point scan, both ways) and ``dense-scaling`` (fit time
 and memory against the number of points, 1000 to 300 600, with SciPy's careful peer on the
@@ -40,7 +40,7 @@ def scan(model: str, theta_step: float, phi_step: float):
     import numpy as np
 
     import brdfjax
-    from brdfjax.measurements import Measurements
+    from brdfjax.data.measurements import Measurements
 
     ti, tr, pr = np.meshgrid(np.radians([10.0, 25.0, 40.0, 55.0, 70.0]),
                              np.radians(np.arange(0.0, 89.9, theta_step)),
@@ -57,12 +57,12 @@ def worker(spec: str) -> dict:
     import resource
 
     import brdfjax
-    import brdfjax.fitting
+    import brdfjax.fitting.fit
 
     model, theta_step, phi_step, mode = spec.split(",")
     data = scan(model, float(theta_step), float(phi_step))
     if mode == "all":
-        brdfjax.fitting.DENSE_POINTS = 10**12
+        brdfjax.fitting.fit.DENSE_POINTS = 10**12
     times, result = [], None
     for _ in range(2):
         tic = time.perf_counter()

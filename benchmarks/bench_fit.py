@@ -33,7 +33,6 @@ import numpy as np
 import brdfjax
 from benchmarks import report
 from benchmarks.report import write_section
-from brdfjax.bounds import default_bounds
 from brdfjax.compare import (
     TOLERANCES,
     compare,
@@ -42,13 +41,14 @@ from brdfjax.compare import (
     scipy_vp,
     unit_objectives,
 )
-from brdfjax.evolve import score_population
-from brdfjax.fitting import fit
-from brdfjax.formats import load
-from brdfjax.model import PAPER_SAMPLES
-from brdfjax.objective import error as objective_error
-from brdfjax.objective import problem
-from brdfjax.synthetic import paper_sample
+from brdfjax.data.formats import load
+from brdfjax.data.synthetic import paper_sample
+from brdfjax.fitting.bounds import default_bounds
+from brdfjax.fitting.evolve import score_population
+from brdfjax.fitting.fit import fit
+from brdfjax.fitting.objective import error as objective_error
+from brdfjax.fitting.objective import problem
+from brdfjax.models.paper import PAPER_SAMPLES
 
 TRAIN = [10, 30, 45, 60]
 REAL = sorted((REPO / "data" / "real" / "uaz-loft-rt300s").glob("raw*/*.xls"))
@@ -85,9 +85,9 @@ def bench_population(repeats):
     data = white_paint_train()
     rows = [population_row(data, dtype, repeats) for dtype in (jnp.float64, jnp.float32)]
     write_section("population", "## Population evaluation (the genetic search's scoring)\n\n"
-                  "`brdfjax.evolve.score_population`: for every member, kb and kd solved "
+                  "`brdfjax.fitting.evolve.score_population`: for every member, kb and kd solved "
                   "exactly for its (kr, a, b), then E of Eq. (6). Geometry terms "
-                  "precomputed once per data set (`brdfjax.geometry.Scene`); each "
+                  "precomputed once per data set (`brdfjax.models.geometry.Scene`); each "
                   "point-evaluation is the parameter-dependent part of Eq. (5) plus its "
                   "share of the six weighted sums.\n\n"
                   "| dtype | members x points | time (ms) | ns per point-evaluation |\n"

@@ -7,7 +7,7 @@ samples in chunks of 1024. Section ``gpu-devices``: the same 256 samples on the 
 the same machine's CPU cores (one single-threaded JAX device per core, as `brdfjax batch`
 does), same JAX, same seeds: speed, and whether the two agree. Section ``gpu-dense``:
 bench_dense's synthetic scans (five and ggx, 101 250 and 300 600 points) fitted the default
-way (searched on representative points) and on all points (`brdfjax.fitting.DENSE_POINTS`
+way (searched on representative points) and on all points (`brdfjax.fitting.fit.DENSE_POINTS`
 above the point count). ``first`` is the first call (tracing and compilation included),
 ``warm`` a second call of the same size, on the machine's default JAX device. The CPU rows
 of the batch and dense sections were measured on another machine (2 cores): compare
@@ -48,7 +48,7 @@ def timed(call):
 
 
 def bench_batch(sizes):
-    from brdfjax.batch import fit_batch
+    from brdfjax.fitting.batch import fit_batch
 
     rows, made = [], samples(max(sizes))
     for size in sizes:
@@ -65,7 +65,7 @@ def bench_devices(count):
     import jax
     import numpy as np
 
-    from brdfjax.batch import fit_batch
+    from brdfjax.fitting.batch import fit_batch
 
     made, rows, fitted = samples(count), [], {}
     for name, devices in (("GPU", jax.devices()), ("CPU", jax.devices("cpu"))):  # GPU first
@@ -89,23 +89,23 @@ def bench_devices(count):
 
 def bench_dense(models, sizes):
     import brdfjax
-    import brdfjax.fitting
+    import brdfjax.fitting.fit
 
-    rows, default = [], brdfjax.fitting.DENSE_POINTS
+    rows, default = [], brdfjax.fitting.fit.DENSE_POINTS
     try:
         for model in models:
             for points in sizes:
                 data = scan(model, *SIZES[points])
                 for mode, threshold in (("representative", default),
                                         ("all points", len(data))):
-                    brdfjax.fitting.DENSE_POINTS = threshold
+                    brdfjax.fitting.fit.DENSE_POINTS = threshold
                     first, warm, result = timed(lambda data=data, model=model: brdfjax.fit(
                         data, model=model))
                     rows.append(f"| {model} | {len(data)} | {mode} | {first:.1f} | "
                                 f"{warm:.2f} | {result.error:.10g} | {result.status} |")
                     print(rows[-1], flush=True)
     finally:
-        brdfjax.fitting.DENSE_POINTS = default
+        brdfjax.fitting.fit.DENSE_POINTS = default
     return rows
 
 
@@ -122,7 +122,7 @@ def main() -> None:
                      "single-threaded, before JAX starts, which would change the others")
     report.DRY_RUN = args.quick
     if "devices" in args.only:
-        from brdfjax.batch import use_every_core
+        from brdfjax.fitting.batch import use_every_core
 
         use_every_core()  # one CPU device per core beside the GPU, before JAX starts
     device = jax.devices()[0]
@@ -143,7 +143,7 @@ def main() -> None:
             ("`brdfjax.fit_batch` of bench_batch's synthetic 716-point samples (the "
              "five-parameter model, default search, same seeds) on the GPU and on the "
              "machine's CPU cores, one single-threaded JAX device per core "
-             "(`brdfjax.batch.use_every_core`, as `brdfjax batch` does); same process, same "
+             "(`brdfjax.fitting.batch.use_every_core`, as `brdfjax batch` does); same process, same "
              "JAX. Steps: the median over samples of the most LM steps of a start. A "
              "sample whose status differs between the devices but whose E does not differs "
              "in LM's convergence test at its 1e-10 tolerance, not in the fit."), "",

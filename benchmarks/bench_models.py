@@ -81,8 +81,8 @@ SAME = 1e-6  # relative tolerance of "the same E"
 
 def real_runs():
     """(label, data) of every bundled real run: RT-300S (blank subtracted) and NIST PTFE."""
-    from brdfjax.formats import load
-    from brdfjax.measurements import DataError
+    from brdfjax.data.formats import load
+    from brdfjax.data.measurements import DataError
 
     def wanted(label):
         return RUN_FILTER is None or any(part in label for part in RUN_FILTER)
@@ -115,7 +115,7 @@ def best_vp(data, model, seeds, **settings):
 
 
 def bench_real(models):
-    from brdfjax.fitting import fit
+    from brdfjax.fitting.fit import fit
 
     rows, misses = [], []
     for label, data in real_runs():
@@ -149,9 +149,9 @@ def bench_real(models):
 
 def synthetic(model, noise, seed):
     """Data of ``model`` at `TRUTHS` on the paper's four-incidence 716-point geometry."""
-    from brdfjax.measurements import Measurements
-    from brdfjax.model import brdf
-    from brdfjax.synthetic import paper_geometry
+    from brdfjax.data.measurements import Measurements
+    from brdfjax.data.synthetic import paper_geometry
+    from brdfjax.models.paper import brdf
 
     angles = paper_geometry("cement")
     clean = np.asarray(brdf(np.array(TRUTHS[model]), *np.radians(angles), model=model),
@@ -162,7 +162,7 @@ def synthetic(model, noise, seed):
 
 
 def bench_synthetic(models, seeds, decide):
-    from brdfjax.fitting import fit
+    from brdfjax.fitting.fit import fit
 
     recovery, noisy = [], []
     for model in models:
@@ -215,26 +215,26 @@ def bench_synthetic(models, seeds, decide):
 
 
 SPEED_NOTE = (
-    "GGX and Beckmann search alpha on a 128-point grid scored once (`brdfjax.evolve.scan`); "
+    "GGX and Beckmann search alpha on a 128-point grid scored once (`brdfjax.fitting.evolve.scan`); "
     "Lambert is solved exactly, and its time is brdfjax's fixed cost per fit (about 1.5 ms "
     "of dispatch and bookkeeping), against one SciPy linear solve. On the white paint, "
     "whose back-scatter no comparison model fits (E 8-81 %), their best fits lie on a bound "
     "of the box (GGX: alpha = 2 and f0 = 1). brdfjax's Levenberg-Marquardt runs in "
     "unconstrained coordinates, where it crawled towards such a bound for hundreds of steps "
     "(SciPy's trf treats the bound directly); since its convergence round uses Marquardt's "
-    "scaling (`brdfjax/marquardt.py`) it gets there in tens (GGX's longest start: 664 "
+    "scaling (`brdfjax/fitting/marquardt.py`) it gets there in tens (GGX's longest start: 664 "
     "steps before, 73 after, 40 of them screening).")
 
 
 def bench_speed(models, repeats):
     from brdfjax.compare import scipy_vp, unit_objectives
-    from brdfjax.formats import load
-    from brdfjax.synthetic import paper_sample
+    from brdfjax.data.formats import load
+    from brdfjax.data.synthetic import paper_sample
 
     sets = {"NiTE on steel A (real, 120 pts)": load(SPEED_RUN),
             "white paint (synthetic, 716 pts)":
                 paper_sample("white_paint", noise=0.025, seed=1).at_incidences(TRAIN)}
-    from brdfjax.fitting import fit
+    from brdfjax.fitting.fit import fit
 
     rows, met = [], []
     for label, data in sets.items():
@@ -275,11 +275,11 @@ def bench_speed(models, repeats):
 
 
 def bench_cv(models):
-    from brdfjax.bounds import default_bounds, from_unit
     from brdfjax.compare import scipy_vp, unit_objectives
+    from brdfjax.fitting.bounds import default_bounds, from_unit
+    from brdfjax.fitting.objective import brdf_values, prepare
     from brdfjax.models import get
-    from brdfjax.objective import brdf_values, prepare
-    from brdfjax.validation import cross_validate, held_out_error, incidence_groups
+    from brdfjax.prediction.cross_validation import cross_validate, held_out_error, incidence_groups
 
     rows, misses = [], []
     for label, data in real_runs():
@@ -345,7 +345,7 @@ def bench_command(repeats):
         rows.append(f"| {label} | {median:.2f} | {min(times):.2f}-{max(times):.2f} | "
                     f"{target:g} | {'yes' if median <= target else 'no'} |")
         print(rows[-1], flush=True)
-    from brdfjax.selection import DEFAULT_CANDIDATES
+    from brdfjax.prediction.selection import DEFAULT_CANDIDATES
 
     write_section("models-command" + SUFFIX, "## `brdfjax models` as a whole process\n\n"
                   f"Its {len(DEFAULT_CANDIDATES)} default candidates "
@@ -362,7 +362,7 @@ def bench_command(repeats):
 def bench_ranking():
     """`brdfjax models` (its default candidates) on the runs kept: the ranking by cv_error,
     and the best sum's cv_error against the best single model's."""
-    from brdfjax.selection import compare_models
+    from brdfjax.prediction.selection import compare_models
 
     rows = []
     for label, data in real_runs():
@@ -393,11 +393,11 @@ def paper_worker(tree: str, repeats: int) -> dict:
     import jax.numpy as jnp
 
     import brdfjax
-    from brdfjax.bounds import default_bounds
-    from brdfjax.evolve import score_population
-    from brdfjax.fitting import fit
-    from brdfjax.objective import problem
-    from brdfjax.synthetic import paper_sample
+    from brdfjax.data.synthetic import paper_sample
+    from brdfjax.fitting.bounds import default_bounds
+    from brdfjax.fitting.evolve import score_population
+    from brdfjax.fitting.fit import fit
+    from brdfjax.fitting.objective import problem
 
     data = paper_sample("white_paint", noise=0.025, seed=1).at_incidences(TRAIN)
     out = {"brdfjax": str(Path(brdfjax.__file__).parent)}
@@ -437,7 +437,7 @@ def cold_fit(env: dict, train: Path) -> float:
 
 def bench_paper(base: Path, rounds: int, batch_samples: int):
     import brdfjax
-    from brdfjax.formats import load
+    from brdfjax.data.formats import load
 
     train = Path(tempfile.mkdtemp()) / "white_paint_train.csv"
     brdfjax.save(load(REPO / "data" / "synthetic" / "white_paint.csv").at_incidences(TRAIN),

@@ -14,7 +14,7 @@ Section ``predictive-synthetic``: where the model is exact: the paper's white pa
 noise, a new noise draw per replicate; 30 deg held out and predicted the same way.
 
 Section ``predictive-discrepancy`` (``--only discrepancy``): the same held-out folds of the
-14 RT-300S runs with the learned discrepancy (`brdfjax.discrepancy`) against the model
+14 RT-300S runs with the learned discrepancy (`brdfjax.prediction.discrepancy`) against the model
 alone, per run: coverage, median 95 % half-width, median relative error of the prediction,
 and each material's run-to-run repeatability. `DECIDE` are the runs looked at while the
 method was built; the others confirm. Also draws `benchmarks/predictive_bands.png`: one
@@ -41,10 +41,10 @@ RUNS = sorted((REPO / "data" / "real" / "uaz-loft-rt300s" / "raw").glob("*_v1o0*
 
 def fit_without(data, incidence, model):
     """``(model name, fit)`` of ``data`` with ``incidence`` held out. ``auto``: the model
-    `brdfjax.selection.compare_models` ranks first on the training incidences alone (as
+    `brdfjax.prediction.selection.compare_models` ranks first on the training incidences alone (as
     ``brdfjax fit --model auto`` would choose)."""
     import brdfjax
-    from brdfjax.selection import compare_models
+    from brdfjax.prediction.selection import compare_models
 
     if model == "auto":
         training = data.select(~data.incidence_mask([incidence]))
@@ -109,7 +109,7 @@ def bench_real(models, runs):
 
 def bench_synthetic(replicates):
     import brdfjax
-    from brdfjax.measurements import Measurements
+    from brdfjax.data.measurements import Measurements
 
     white = brdfjax.load(REPO / "data" / "synthetic" / "white_paint.csv")
     clean = np.asarray(brdfjax.brdf(brdfjax.PAPER_SAMPLES["white_paint"], white.theta_i,
@@ -150,7 +150,7 @@ def repeatability(paths) -> float:
     """95th percentile over the geometries all runs share of
     ``|y - mean of the others| / (|mean| + 5 % of the median |BRDF|)``."""
     import brdfjax
-    from brdfjax.measurements import geometry_keys
+    from brdfjax.data.measurements import geometry_keys
 
     runs = []
     for path in paths:
@@ -173,8 +173,8 @@ def held_out_both(data, model):
     models used, and the first fold's predictions (for the figure)."""
     import warnings
 
-    from brdfjax.prediction import calibrate, predict
-    from brdfjax.validation import cross_validate
+    from brdfjax.prediction.cross_validation import cross_validate
+    from brdfjax.prediction.intervals import calibrate, predict
 
     out = {kind: ([], [], [], []) for kind in ("none", "gp")}
     used, first = [], {}

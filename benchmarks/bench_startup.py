@@ -35,7 +35,7 @@ TARGETS = {"fit": 8.0, "models": 30.0, "batch auto": 60.0}
 
 def commands(folder: Path) -> dict:
     from brdfjax import save
-    from brdfjax.formats import load
+    from brdfjax.data.formats import load
 
     train = folder / "white_paint_train.csv"
     save(load(REPO / "data" / "synthetic" / "white_paint.csv").at_incidences([10, 30, 45, 60]),

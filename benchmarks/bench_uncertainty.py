@@ -11,7 +11,7 @@ contain the true parameter, and how many points of the true curves (all six inci
 held-out ones included) lie inside the 95 % bands. A second, smaller set drops sigma, so
 that the noise scales are inferred. Speed: Laplace warm, and emcee 32 walkers x 5000 steps
 warm, on the bundled 716-point set. Last, the check behind the corrected snooker move
-(`brdfjax.posterior`): emcee's ``DESnookerMove`` against the corrected one on a 5-D
+(`brdfjax.uncertainty.mcmc`): emcee's ``DESnookerMove`` against the corrected one on a 5-D
 Gaussian. Sections of BENCHMARKS.md: ``uncertainty`` (calibration), ``uncertainty-speed``,
 ``uncertainty-snooker``; ``--only`` runs some of them.
 """
@@ -35,14 +35,15 @@ sys.path.insert(0, str(REPO))
 import numpy as np
 
 from benchmarks.report import worker_json, write_section
-from brdfjax.bands import curve_bands
-from brdfjax.fitting import fit
-from brdfjax.formats import load
-from brdfjax.laplace import laplace_approximation
-from brdfjax.model import PAPER_SAMPLES, PARAMETER_NAMES, projected_brdf
+from brdfjax.data.formats import load
+from brdfjax.data.synthetic import paper_sample
+from brdfjax.fitting.fit import fit
+from brdfjax.models.paper import PAPER_SAMPLES, PARAMETER_NAMES, projected_brdf
 from brdfjax.plot import curve_angles
-from brdfjax.posterior import UncertaintyWarning, inline_dispatch, sample_posterior
-from brdfjax.synthetic import paper_sample
+from brdfjax.uncertainty.bands import curve_bands
+from brdfjax.uncertainty.laplace import laplace_approximation
+from brdfjax.uncertainty.mcmc import inline_dispatch, sample_posterior
+from brdfjax.uncertainty.result import UncertaintyWarning
 
 TRUTH = np.array(PAPER_SAMPLES["white_paint"], dtype=float)
 HELD_OUT = [21, 52]
@@ -163,9 +164,9 @@ def eq6_intervals(result, level: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
     import jax
     import jax.numpy as jnp
 
-    from brdfjax.bounds import from_unit, to_unit
-    from brdfjax.model import evaluate_projected
-    from brdfjax.objective import prepare, targets
+    from brdfjax.fitting.bounds import from_unit, to_unit
+    from brdfjax.fitting.objective import prepare, targets
+    from brdfjax.models.paper import evaluate_projected
 
     train, model, bounds = result.training, result.model, result.bounds
     scene = prepare(train, model)
@@ -248,7 +249,7 @@ def speed_worker(inline: bool) -> dict:
     """Laplace warm and emcee 32 x 5000 warm, in this (fresh) process: times in seconds.
 
     ``inline``: JAX's CPU computations run on the calling thread
-    (`brdfjax.posterior.inline_dispatch`, as ``brdfjax fit`` sets), else JAX's default
+    (`brdfjax.uncertainty.mcmc.inline_dispatch`, as ``brdfjax fit`` sets), else JAX's default
     asynchronous dispatch. Wall time, and the process's CPU time beside it: on a shared
     machine the wall time includes waiting for a core.
     """
@@ -306,7 +307,7 @@ def snooker_check(steps: int = 20000) -> str:
     """Variance of a 5-D Gaussian's samples over its true variance, per move mix."""
     import emcee
 
-    from brdfjax.posterior import snooker_move
+    from brdfjax.uncertainty.mcmc import snooker_move
 
     rng = np.random.default_rng(1)
     factor = rng.standard_normal((5, 5))
@@ -363,8 +364,8 @@ On the bundled 716-point white-paint set (fit on 10/30/45/60 deg).
         print(snooker, flush=True)
         write_section("uncertainty-snooker", f"""## Uncertainty: emcee's snooker move
 
-`DESnookerMove` of emcee 3.1.6 against the corrected move `brdfjax.posterior` uses, on a
-5-D Gaussian with known covariance (see `brdfjax/posterior.py` for what differs).
+`DESnookerMove` of emcee 3.1.6 against the corrected move `brdfjax.uncertainty.mcmc` uses, on a
+5-D Gaussian with known covariance (see `brdfjax/uncertainty/mcmc.py` for what differs).
 
 {snooker}
 """)

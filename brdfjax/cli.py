@@ -61,7 +61,7 @@ def main(argv=None) -> int:
     while the command's thread is still inside the JAX runtime, which ended in a
     segmentation fault (2 of 5 interrupted ``brdfjax batch`` runs). Nothing is lost by
     leaving at once: ``batch`` replaces its CSV whole after every chunk
-    (`brdfjax.formats.write_atomically`), and no other command has written anything by
+    (`brdfjax.data.formats.write_atomically`), and no other command has written anything by
     then that a rerun would not write again. Called with ``argv`` (tests, scripts), the
     command runs in the calling thread and an interrupt returns 130.
     """
@@ -110,7 +110,7 @@ def _run(args) -> int:
 
 
 def _run_quietly(args) -> int:
-    from brdfjax.measurements import DataError
+    from brdfjax.data.measurements import DataError
     from brdfjax.optional import MissingDependency
 
     caught = {}

@@ -2,7 +2,7 @@
 
 Every method fits the same model (by default Eq. 5; any model of `brdfjax.models`),
 evaluated by the same compiled function, to the same data, minimising the same E of
-Eq. (6) over the same box (the model's `brdfjax.bounds.default_bounds`), in one process:
+Eq. (6) over the same box (the model's `brdfjax.fitting.bounds.default_bounds`), in one process:
 
 - ``brdfjax hybrid``: genetic search, then Levenberg-Marquardt (the default);
 - ``brdfjax ga``: the genetic search alone;
@@ -20,7 +20,7 @@ Stopping rules (`TOLERANCES`): brdfjax's genetic search stops after ``max_genera
 (40) or when no island's best E has improved by a relative 1e-6 for 15 generations (a model
 with one searched parameter, GGX or Beckmann, is scored once on a 128-point grid); its LM
 polish (optimistix Levenberg-Marquardt, float64) stops at rtol = atol = 1e-10 or after
-1000 steps (`brdfjax.polish`). SciPy's ``differential_evolution`` runs with its defaults
+1000 steps (`brdfjax.fitting.polish`). SciPy's ``differential_evolution`` runs with its defaults
 (popsize 15 per dimension, maxiter 1000, tol 0.01, atol 0: it stops when the population's
 standard deviation of E is below 0.01 of its mean), ``polish=False``; ``least_squares``
 (``trf``, box (0, 1)) with xtol = ftol = gtol = 1e-12. pygad runs 200 generations of 64.
@@ -45,10 +45,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from brdfjax.bounds import default_bounds, from_unit, to_unit
-from brdfjax.fitting import fit
+from brdfjax.fitting.bounds import default_bounds, from_unit, to_unit
+from brdfjax.fitting.fit import fit
+from brdfjax.fitting.objective import error, problem, residuals, solve_linear
 from brdfjax.models import Model, get
-from brdfjax.objective import error, problem, residuals, solve_linear
 
 # Every method's stopping rule, as stated in the benchmark tables.
 TOLERANCES = {
@@ -210,7 +210,7 @@ def scipy_vp(data, model: str | Model | None = None, seed: int = 0, *, bounds=No
 
     DE searches the unit cube of the model's nonlinear parameters only
     (`nonlinear_parameters`: (kr, a, b) of the five-parameter model, alpha of GGX); each
-    candidate's linear parameters are solved exactly by `brdfjax.objective.solve_linear`
+    candidate's linear parameters are solved exactly by `brdfjax.fitting.objective.solve_linear`
     (jitted; the same bounded linear least squares the genetic search uses), the others
     held at the centre of their box (they do not enter E). ``least_squares`` (trf, box
     (0, 1), xtol = ftol = gtol = 1e-12) then polishes all parameters from the best

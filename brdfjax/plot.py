@@ -76,7 +76,7 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
     Returns:
         The matplotlib figure (already saved and closed), for inspection.
     """
-    from brdfjax.model import projected_brdf
+    from brdfjax.models.paper import projected_brdf
 
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7.5, 5))
@@ -139,7 +139,7 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
 
 def plot_prediction_bands(held, predictions: dict, path, title: str = "") -> None:
     """Held-out measurements against predictions and their 68 / 95 % bands, one panel per
-    prediction (``{label: brdfjax.prediction.Prediction}``, in-plane geometry), on one
+    prediction (``{label: brdfjax.prediction.intervals.Prediction}``, in-plane geometry), on one
     log scale of ``f_r cos(theta_r)`` so that the wings read as well as the peak."""
     plt = _pyplot()
     panels = list(predictions.items())
@@ -191,7 +191,7 @@ def plot_hemisphere(params, incidences_deg, path, title: str = "", resolution: i
     """
     from matplotlib.ticker import MaxNLocator
 
-    from brdfjax.model import projected_brdf
+    from brdfjax.models.paper import projected_brdf
 
     plt = _pyplot()
     count = len(incidences_deg)
@@ -241,7 +241,7 @@ def plot_polar_maps(data, predicted, path, title: str = "", max_rows: int = 6):
 
     theta_r is the radius (degrees, 0 at the centre) and phi_r the angle around it (0: the
     source side, 180: the specular side). One row per incidence, or per incidence bin
-    (`~brdfjax.measurements.Measurements.incidence_bins`) when there are more than
+    (`~brdfjax.data.measurements.Measurements.incidence_bins`) when there are more than
     ``max_rows``. The data and model columns share one colour scale (logarithmic when the
     values span more than two decades), the residual column a symmetric one; every row
     uses the same scales, so rows can be compared.
@@ -349,8 +349,8 @@ def plot_spectral(records, path, names, title: str = ""):
 
 def _corner_coordinates(result) -> tuple[np.ndarray, list]:
     """A result's draws in the prior's coordinates (log10 kb, asinh b, ...), labelled."""
-    from brdfjax.bounds import scale_label, scaled
-    from brdfjax.model import PARAMETER_NAMES
+    from brdfjax.fitting.bounds import scale_label, scaled
+    from brdfjax.models.paper import PARAMETER_NAMES
 
     with np.errstate(divide="ignore"):
         values = scaled(np.asarray(result.samples, dtype=float), result.bounds)
@@ -367,7 +367,7 @@ def plot_corner(results, path, title: str = "", truths=None, names=None):
     39 % and 86 % (one and two standard deviations of a 2-D Gaussian).
 
     Args:
-        results: an `~brdfjax.posterior.UncertaintyResult` or a list of them (e.g. Laplace
+        results: an `~brdfjax.uncertainty.result.UncertaintyResult` or a list of them (e.g. Laplace
             and MCMC of the same data, to compare).
         path: output image file.
         title: figure title.
@@ -391,7 +391,7 @@ def plot_corner(results, path, title: str = "", truths=None, names=None):
                             plot_density=False, fill_contours=False, smooth=1.0,
                             hist_kwargs={"density": True})
     if truths is not None:
-        from brdfjax.bounds import scaled
+        from brdfjax.fitting.bounds import scaled
 
         corner.overplot_lines(fig, scaled(np.asarray(truths, dtype=float), results[0].bounds),
                               color="black", lw=1)
@@ -408,7 +408,7 @@ def plot_reflectance_bands(bands, path, title: str = "", truth=None):
     """rho(theta_i) of Eq. (9): posterior median with 68 % and 95 % bands.
 
     Args:
-        bands: `~brdfjax.bands.ReflectanceBands`.
+        bands: `~brdfjax.uncertainty.bands.ReflectanceBands`.
         path: output image file.
         title: figure title.
         truth: optional true rho at the same incidences (synthetic data).
@@ -438,7 +438,7 @@ def plot_band_widths(bands, path, title: str = "", held_out=()):
     curve is determined (held-out incidences dashed).
 
     Args:
-        bands: ``{incidence: CurveBand}`` from `brdfjax.bands.curve_bands`.
+        bands: ``{incidence: CurveBand}`` from `brdfjax.uncertainty.bands.curve_bands`.
         path: output image file.
         title: figure title.
         held_out: incidences (deg) not used in the fit.
@@ -474,7 +474,7 @@ def plot_models(data, comparison, path, title: str = "", max_panels: int = 6):
     Returns:
         The matplotlib figure (already saved and closed), for inspection.
     """
-    from brdfjax.model import projected_brdf
+    from brdfjax.models.paper import projected_brdf
 
     plt = _pyplot()
     folds = comparison.best.validation.folds

@@ -20,7 +20,7 @@ SHARED = REPO.parent / "shared"
 @pytest.fixture(scope="session")
 def white_paint():
     """The bundled synthetic white-paint measurements."""
-    from brdfjax.formats import load
+    from brdfjax.data.formats import load
 
     return load(DATA / "synthetic" / "white_paint.csv")
 

@@ -18,14 +18,14 @@ import numpy as np
 import pytest
 from conftest import DATA, REPO
 
-from brdfjax.batch import fit_batch
-from brdfjax.cluster import fit_chunk
 from brdfjax.commands.batch import expand
-from brdfjax.fitting import fit
-from brdfjax.formats import load, save
-from brdfjax.measurements import Measurements
-from brdfjax.model import PAPER_SAMPLES
-from brdfjax.synthetic import paper_geometry, synthesize
+from brdfjax.data.formats import load, save
+from brdfjax.data.measurements import Measurements
+from brdfjax.data.synthetic import paper_geometry, synthesize
+from brdfjax.fitting.batch import fit_batch
+from brdfjax.fitting.cluster import fit_chunk
+from brdfjax.fitting.fit import fit
+from brdfjax.models.paper import PAPER_SAMPLES
 
 SMALL = {"population_size": 64, "max_generations": 15, "starts": 8, "max_steps": 40}
 CLI_SMALL = [f"--{k.replace('_', '-')}={v}" for k, v in SMALL.items()] + ["--chunk-size=2"]
@@ -92,7 +92,7 @@ def test_laplace_uncertainty_is_added_to_fitted_samples_only(mixed_batch, single
     fit: the same status and the same standard deviations (both polish to the same mode)."""
     import warnings
 
-    from brdfjax.laplace import laplace_approximation
+    from brdfjax.uncertainty.laplace import laplace_approximation
 
     samples, results = mixed_batch
     summaries = fit_chunk(samples, {**SMALL, "uncertainty": "laplace"})
@@ -162,7 +162,7 @@ def test_scheduler_without_dask_is_one_clear_error_before_any_work(tmp_path, mon
 
 def test_model_auto_makes_the_devices_before_choosing(tmp_path, monkeypatch):
     """One device per core must exist before ``--model auto`` runs its first fit: a JAX
-    already started keeps its devices (`brdfjax.batch.use_every_core`)."""
+    already started keeps its devices (`brdfjax.fitting.batch.use_every_core`)."""
     import brdfjax.commands.batch as command
     from brdfjax.cli import main
 
@@ -285,7 +285,7 @@ def test_split_over_two_devices_gives_the_same_results(reference, catalogue, env
                                                          tmp_path):
     out = tmp_path / "results.csv"
     env = {**environment, "XLA_FLAGS": "--xla_force_host_platform_device_count=2"}
-    # 16 samples a chunk: a device per 8 samples (brdfjax.batch.SAMPLES_PER_DEVICE)
+    # 16 samples a chunk: a device per 8 samples (brdfjax.fitting.batch.SAMPLES_PER_DEVICE)
     done = subprocess.run(batch_command(catalogue, out, "--chunk-size=16"), check=False,
                           env=env, capture_output=True, text=True, timeout=280)
     assert "fitting on 2 cpu device(s)" in done.stderr, done.stderr
@@ -391,7 +391,7 @@ def test_every_wavelength_is_a_sample_with_its_own_row(tmp_path, capsys):
     kd equal to its closed form sum(f cos^2) / sum(cos^2), a resume with nothing to do, and
     the parameters-against-wavelength plot."""
     from brdfjax.cli import main
-    from brdfjax.formats import load_spectral
+    from brdfjax.data.formats import load_spectral
 
     source = DATA / "real" / "nist-germer-ptfe" / "PTFE.data.csv"
     out, plot = tmp_path / "results.csv", tmp_path / "spectral.png"
@@ -417,7 +417,7 @@ def test_model_auto_picks_the_model_that_made_the_data_for_every_sample(tmp_path
     held-out incidences exactly and every other model does not, so ``--model auto``
     chooses GGX, says so, and fits every row with it."""
     from brdfjax.cli import main
-    from brdfjax.model import brdf
+    from brdfjax.models.paper import brdf
 
     theta_i, theta_r, phi_r = paper_geometry("khaki_paint")
     keep = np.isin(theta_i, (10, 30, 45, 60)) & (theta_r % 4 == 0)

@@ -6,16 +6,16 @@ import sys
 from conftest import REPO
 
 from brdfjax import cache
-from brdfjax.fitting import fit
-from brdfjax.synthetic import paper_sample
+from brdfjax.data.synthetic import paper_sample
+from brdfjax.fitting.fit import fit
 
 # A later process loads the fit's stages from disk: neither optimistix nor equinox is
 # imported (they are only needed to trace the Levenberg-Marquardt stage).
 SCRIPT = """
 import sys
 from brdfjax.cache import enable
-from brdfjax.fitting import fit
-from brdfjax.synthetic import paper_sample
+from brdfjax.fitting.fit import fit
+from brdfjax.data.synthetic import paper_sample
 enable(sys.argv[1])
 result = fit(paper_sample("khaki_paint", noise=0.01, seed=3).at_incidences([10, 30]), seed=2)
 print(repr(result.error), "optimistix" in sys.modules)

@@ -10,7 +10,7 @@ import transcription
 from conftest import DATA
 
 from brdfjax.cli import build_parser, main
-from brdfjax.model import PAPER_SAMPLES, brdf
+from brdfjax.models.paper import PAPER_SAMPLES, brdf
 
 
 def commands(parser):
@@ -177,14 +177,14 @@ def test_a_bad_predict_geometry_is_refused_before_any_fit(tmp_path, capsys, mode
 def test_mcmc_without_emcee_is_one_clear_error_before_the_fit(tmp_path, capsys, monkeypatch):
     import sys
 
-    import brdfjax.fitting
+    import brdfjax.fitting.fit
 
     monkeypatch.setitem(sys.modules, "emcee", None)  # its import now fails
 
     def fit(*args, **kwargs):
         raise AssertionError("fitted before emcee was checked")
 
-    monkeypatch.setattr(brdfjax.fitting, "fit", fit)
+    monkeypatch.setattr(brdfjax.fitting.fit, "fit", fit)
     assert main(["fit", str(DATA / "synthetic" / "white_paint.csv"),
                  "--uncertainty", "mcmc"]) == 1
     assert capsys.readouterr().err.strip().splitlines() == [
@@ -197,7 +197,7 @@ def test_an_import_error_that_is_a_bug_keeps_its_traceback(monkeypatch):
     import brdfjax.commands.data as command
 
     def broken(args):
-        from brdfjax.fitting import no_such_name  # noqa: F401
+        from brdfjax.fitting.fit import no_such_name  # noqa: F401
 
     monkeypatch.setattr(command, "run_info", broken)
     with pytest.raises(ImportError, match="no_such_name"):
@@ -208,14 +208,14 @@ def test_a_failed_fit_exits_1_with_the_reason(tmp_path, capsys, monkeypatch):
     """A fit whose status is failed (no finite E anywhere) exits 1; its JSON says why."""
     import dataclasses
 
-    import brdfjax.fitting
+    import brdfjax.fitting.fit
 
-    real = brdfjax.fitting.fit
+    real = brdfjax.fitting.fit.fit
 
     def failing(*args, **kwargs):
         return dataclasses.replace(real(*args, **kwargs), status="failed", error=float("nan"))
 
-    monkeypatch.setattr(brdfjax.fitting, "fit", failing)
+    monkeypatch.setattr(brdfjax.fitting.fit, "fit", failing)
     out = tmp_path / "fit.json"
     code = main(["fit", str(DATA / "synthetic" / "white_paint.csv"), "--uncertainty", "none",
                  "--json", str(out)])
@@ -258,12 +258,12 @@ def test_numerical_warnings_become_one_line_each(monkeypatch, capsys):
     ["measure", "--port", "/dev/null", "--incidence", "10", "--out", "{missing}/m.csv"],
 ], ids=lambda command: " ".join(command[:1] + command[2:3]))
 def test_an_unwritable_output_fails_before_any_work(command, tmp_path, capsys, monkeypatch):
-    import brdfjax.formats
+    import brdfjax.data.formats
 
     def no_work(*args, **kwargs):
         raise AssertionError("work started before the outputs were checked")
 
-    monkeypatch.setattr(brdfjax.formats, "load", no_work)
+    monkeypatch.setattr(brdfjax.data.formats, "load", no_work)
     (tmp_path / "plain").write_text("a file, not a folder")
     places = {"data": str(DATA / "synthetic" / "white_paint.csv"), "tmp": str(tmp_path),
               "missing": str(tmp_path / "missing"), "file": str(tmp_path / "plain")}

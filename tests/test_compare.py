@@ -3,9 +3,9 @@
 import pytest
 from conftest import DATA
 
-from brdfjax.bounds import default_bounds
 from brdfjax.compare import compare, format_table, nonlinear_parameters
-from brdfjax.formats import load
+from brdfjax.data.formats import load
+from brdfjax.fitting.bounds import default_bounds
 from brdfjax.models import get
 
 

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 from conftest import REPO
 
-from brdfjax.fitting import fit
-from brdfjax.formats.cube import Cube, write_cube
-from brdfjax.model import PAPER_SAMPLES, brdf
+from brdfjax.data.formats.cube import Cube, write_cube
+from brdfjax.fitting.fit import fit
+from brdfjax.models.paper import PAPER_SAMPLES, brdf
 
 h5py = pytest.importorskip("h5py")
 

@@ -6,8 +6,8 @@ import jax
 import numpy as np
 import pytest
 
-from brdfjax import discrepancy
-from brdfjax.prediction import Calibration
+from brdfjax.prediction import discrepancy
+from brdfjax.prediction.intervals import Calibration
 
 
 def direct_process(x, r, fitted):

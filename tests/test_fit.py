@@ -8,14 +8,21 @@ from hypothesis import strategies as st
 from scipy.optimize import lsq_linear
 from transcription import brdf as transcribed
 
-from brdfjax.bounds import default_bounds, from_free, from_unit, make_bounds, to_free, to_unit
-from brdfjax.evolve import evolve
-from brdfjax.fitting import fit
-from brdfjax.model import FIVE, PAPER_SAMPLES, evaluate
+from brdfjax.data.synthetic import paper_sample
+from brdfjax.fitting.bounds import (
+    default_bounds,
+    from_free,
+    from_unit,
+    make_bounds,
+    to_free,
+    to_unit,
+)
+from brdfjax.fitting.evolve import evolve
+from brdfjax.fitting.fit import fit
+from brdfjax.fitting.objective import _geometry, problem, projected, solve_linear
+from brdfjax.fitting.polish import polish, polish_population
 from brdfjax.models.five import FRESNEL_FREE_A
-from brdfjax.objective import _geometry, problem, projected, solve_linear
-from brdfjax.polish import polish, polish_population
-from brdfjax.synthetic import paper_sample
+from brdfjax.models.paper import FIVE, PAPER_SAMPLES, evaluate
 
 
 @pytest.fixture(scope="module")
@@ -231,7 +238,7 @@ def test_linear_coefficients_match_bounded_least_squares(white_paint, kr, a, b, 
 def test_evolve_takes_a_seed_a_typed_key_or_a_legacy_key():
     import jax
 
-    from brdfjax.objective import problem
+    from brdfjax.fitting.objective import problem
 
     prob = problem(paper_sample("khaki_paint", noise=0.0).at_incidences([10]))
     runs = [evolve(key, prob, default_bounds(), max_generations=2).errors

@@ -10,9 +10,9 @@ import pytest
 from conftest import DATA
 
 from brdfjax.cli import main
-from brdfjax.formats import load, replace_atomically, save, write_atomically
-from brdfjax.measurements import DataError, Measurements
-from brdfjax.synthetic import paper_sample
+from brdfjax.data.formats import load, replace_atomically, save, write_atomically
+from brdfjax.data.measurements import DataError, Measurements
+from brdfjax.data.synthetic import paper_sample
 
 HEADER = "theta_i,theta_r,phi_r,brdf\n"
 GOOD_ROWS = "".join(f"{ti},{tr},180,{0.1 + 0.001 * tr}\n" for ti in (10, 30) for tr in (0, 20, 40))

@@ -4,10 +4,10 @@ entry and the checks say what the rows are."""
 import numpy as np
 import pytest
 
-from brdfjax.formats.abg import AbgRow, abg_rows, catalog_entry, report
-from brdfjax.measurements import Measurements
-from brdfjax.model import brdf
-from brdfjax.validation import fit_per_incidence
+from brdfjax.data.formats.abg import AbgRow, abg_rows, catalog_entry, report
+from brdfjax.data.measurements import Measurements
+from brdfjax.models.paper import brdf
+from brdfjax.prediction.cross_validation import fit_per_incidence
 
 TRUTH = {10.0: (2e-3, 1e-2, 1.5), 40.0: (1e-3, 3e-3, 2.0), 60.0: (5e-4, 1e-3, 2.5)}
 

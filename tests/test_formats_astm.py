@@ -5,8 +5,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from brdfjax.formats import astm, load, load_spectral, save, zemax
-from brdfjax.measurements import DataError
+from brdfjax.data.formats import astm, load, load_spectral, save, zemax
+from brdfjax.data.measurements import DataError
 
 REPO = Path(__file__).resolve().parents[1]
 AUTHORS_BSDF = REPO / "data" / "real" / "uaz-loft-rt300s" / "processed_by_authors"
@@ -139,7 +139,7 @@ def test_round_trip_with_the_authors_zemax_table(tmp_path):
 
 
 def test_model_export_matches_the_model_and_the_zemax_export(tmp_path):
-    from brdfjax.model import PAPER_SAMPLES, brdf
+    from brdfjax.models.paper import PAPER_SAMPLES, brdf
 
     params = PAPER_SAMPLES["white_paint"]
     astm.write_model_astm(tmp_path / "m.astm", params, [0, 30, 60], np.arange(0, 90, 10),

@@ -5,8 +5,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from brdfjax.formats import load, load_geometry
-from brdfjax.measurements import DataError
+from brdfjax.data.formats import load, load_geometry
+from brdfjax.data.measurements import DataError
 
 REPO = Path(__file__).resolve().parents[1]
 # The same three points, written by hand in each dialect.

@@ -17,8 +17,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from brdfjax.formats import load, load_geometry
-from brdfjax.measurements import DataError, Measurements, validate
+from brdfjax.data.formats import load, load_geometry
+from brdfjax.data.measurements import DataError, Measurements, validate
 
 REPO = Path(__file__).resolve().parents[1]
 UAZ = REPO / "data" / "real" / "uaz-loft-rt300s"

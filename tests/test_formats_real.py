@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from brdfjax.formats import load, nist, rt300s, save, zemax
-from brdfjax.measurements import DataError, Measurements
+from brdfjax.data.formats import load, nist, rt300s, save, zemax
+from brdfjax.data.measurements import DataError, Measurements
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO / "data" / "real"
@@ -294,7 +294,7 @@ def test_zemax_model_export_round_trip(tmp_path):
     import jax
 
     jax.config.update("jax_enable_x64", True)
-    from brdfjax.model import PAPER_SAMPLES, brdf
+    from brdfjax.models.paper import PAPER_SAMPLES, brdf
 
     params = PAPER_SAMPLES["white_paint"]
     path = tmp_path / "white_paint.bsdf"

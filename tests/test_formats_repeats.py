@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from brdfjax.cli import main
-from brdfjax.formats import load, nist, save, zemax
-from brdfjax.measurements import Measurements, repeat_summary
+from brdfjax.data.formats import load, nist, save, zemax
+from brdfjax.data.measurements import Measurements, repeat_summary
 
 REPO = Path(__file__).resolve().parents[1]
 PTFE_RANDOM = REPO / "data" / "real" / "nist-germer-ptfe" / "PTFE.data.random.csv"

@@ -14,14 +14,14 @@ import serial
 
 from brdfjax.cli import build_parser, main
 from brdfjax.commands.instrument import scan_plan
-from brdfjax.formats import load
+from brdfjax.data.formats import load
+from brdfjax.data.measurements import DataError, Measurements
 from brdfjax.instrument import protocol
 from brdfjax.instrument.acquire import Journal, measure, to_measurements
 from brdfjax.instrument.driver import DisconnectedError, Instrument, RefusedError
 from brdfjax.instrument.plan import Plan, load_plan
 from brdfjax.instrument.simulator import DataSample, NoData
-from brdfjax.measurements import DataError, Measurements
-from brdfjax.model import PAPER_SAMPLES
+from brdfjax.models.paper import PAPER_SAMPLES
 
 TRUTH = PAPER_SAMPLES["khaki_paint"]
 SEED = 1

@@ -6,8 +6,8 @@ import numpy as np
 import optimistix as optx
 import pytest
 
-from brdfjax.bounds import SATURATED, Bounds, from_free
-from brdfjax.marquardt import ScaledLevenbergMarquardt
+from brdfjax.fitting.bounds import SATURATED, Bounds, from_free
+from brdfjax.fitting.marquardt import ScaledLevenbergMarquardt
 
 UNIT_SQUARE = Bounds(np.zeros(2), np.ones(2), np.zeros(2, dtype=int))
 
@@ -80,7 +80,7 @@ def test_the_white_paint_ggx_fit_reaches_its_bounds_without_crawling(white_paint
     # The paper's white paint back-scatters as no GGX can: its best GGX lies on the box's
     # corner alpha = 2, f0 = 1, which unscaled LM took 655 steps to approach.
     from brdfjax.compare import scipy_vp
-    from brdfjax.fitting import fit
+    from brdfjax.fitting.fit import fit
 
     result = fit(white_paint, model="ggx", seed=0)
     assert result.status == "converged"

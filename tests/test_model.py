@@ -10,8 +10,8 @@ from transcription import brdf as transcribed
 from transcription import generic_points
 from transcription import shadowing as transcribed_shadowing
 
-from brdfjax.geometry import ShadowingConstants, scene
-from brdfjax.model import PAPER_SAMPLES, Params, brdf, evaluate, projected_brdf
+from brdfjax.models.geometry import ShadowingConstants, scene
+from brdfjax.models.paper import PAPER_SAMPLES, Params, brdf, evaluate, projected_brdf
 
 HALF_PI = np.pi / 2
 SAMPLES = list(PAPER_SAMPLES.values())

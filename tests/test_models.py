@@ -15,12 +15,12 @@ from scipy.optimize import lsq_linear
 from transcription import generic_points
 
 import brdfjax
-from brdfjax.bounds import default_bounds, from_unit
-from brdfjax.hemispherical import reflectance
-from brdfjax.measurements import Measurements
-from brdfjax.model import brdf, evaluate
+from brdfjax.data.measurements import Measurements
+from brdfjax.fitting.bounds import default_bounds, from_unit
+from brdfjax.fitting.objective import error, problem, solve_linear
 from brdfjax.models import available, get
-from brdfjax.objective import error, problem, solve_linear
+from brdfjax.models.hemispherical import reflectance
+from brdfjax.models.paper import brdf, evaluate
 
 HALF_PI = np.pi / 2
 SUMS = ("ggx+backscatter", "ggx+ggx", "abg+lambert")
@@ -334,13 +334,13 @@ def test_searched_size_is_what_the_linear_solve_leaves(name):
 
 
 def test_a_one_parameter_search_offers_each_local_minimum_of_its_grid():
-    """GGX searches alpha only, on a grid scored once (`brdfjax.evolve.scan`). Data made of
+    """GGX searches alpha only, on a grid scored once (`brdfjax.fitting.evolve.scan`). Data made of
     two GGX lobes (alpha 0.03 and 0.6) have two minima of E along alpha: the scan offers
     both, each lower than E one grid step either side (recomputed in float64), and the fit
     polished from them reaches E below SciPy's careful peer's."""
     from brdfjax.compare import scipy_vp
-    from brdfjax.evolve import evolve, score_population
-    from brdfjax.synthetic import paper_geometry
+    from brdfjax.data.synthetic import paper_geometry
+    from brdfjax.fitting.evolve import evolve, score_population
 
     angles = paper_geometry("cement")
     values = sum(np.asarray(brdf(np.array(p), *np.radians(angles), model="ggx"))

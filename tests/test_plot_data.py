@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from brdfjax.formats import load
+from brdfjax.data.formats import load
 from brdfjax.plot import plot_hemisphere, plot_polar_maps, plot_spectral
 
 REPO = Path(__file__).resolve().parents[1]
@@ -32,7 +32,7 @@ def test_polar_maps_need_one_prediction_per_point(tmp_path):
 
 
 def test_hemisphere_and_spectral_figures(tmp_path):
-    from brdfjax.model import PAPER_SAMPLES
+    from brdfjax.models.paper import PAPER_SAMPLES
 
     plot_hemisphere(PAPER_SAMPLES["white_paint"], [10, 60], tmp_path / "h.png",
                     resolution=31)
@@ -48,7 +48,7 @@ def test_the_hemisphere_draws_the_peak_at_its_height(tmp_path):
     5.97 (brdfjax eval): its grid missed the peak's direction and the surface skipped rows.
     The drawn surface now holds the peak exactly."""
     import brdfjax
-    from brdfjax.model import PAPER_SAMPLES
+    from brdfjax.models.paper import PAPER_SAMPLES
 
     params = PAPER_SAMPLES["white_paint"]
     peaks = plot_hemisphere(params, [10, 30, 60], tmp_path / "h.png")
@@ -66,7 +66,7 @@ def test_fit_curves_pass_through_the_peaks_and_bands_are_named_not_faint(tmp_pat
     the legend, strongest first, instead of "(lighter)" in one title and "(darker)" in
     another."""
     import brdfjax
-    from brdfjax.model import PAPER_SAMPLES
+    from brdfjax.models.paper import PAPER_SAMPLES
     from brdfjax.plot import curve_angles, plot_fit
 
     params = PAPER_SAMPLES["white_paint"]

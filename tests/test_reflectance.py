@@ -6,14 +6,14 @@ import numpy as np
 import pytest
 import transcription
 
-from brdfjax.hemispherical import (
+from brdfjax.models.hemispherical import (
     AZIMUTH_NODES,
     RADIAL_NODES,
     energy_warning,
     hemisphere_nodes,
     reflectance,
 )
-from brdfjax.model import PAPER_SAMPLES
+from brdfjax.models.paper import PAPER_SAMPLES
 
 INCIDENCES = np.radians([0.0, 30.0, 60.0, 80.0, 90.0])
 CHECKED_DEG = [0.0, 30.0, 60.0, 80.0]  # where the independent integral is taken
@@ -60,7 +60,7 @@ def test_the_constant_part_is_integrated_exactly_and_the_lobe_by_the_nodes():
     At 89 deg the nodes alone are 1.5e-4 off pi, yet a constant BRDF (a Lambertian kd, here
     the five-parameter model with kb = 0) gives pi kd to rounding; and for the white paint
     the result is pi min f plus the nodes' sum of the rest, not the nodes' sum of f."""
-    from brdfjax.model import brdf
+    from brdfjax.models.paper import brdf
 
     theta_i = np.radians(89.0)
     theta_r, phi_r, weight = (np.asarray(x) for x in hemisphere_nodes(
@@ -96,7 +96,7 @@ def test_quadrature_converged_to_1e6(name):
 
 def test_coarse_grid_would_be_wrong():
     """A 45 x 90 midpoint grid in (tr, pr) misses the narrow back-scatter peak."""
-    from brdfjax.model import brdf
+    from brdfjax.models.paper import brdf
 
     tr = (np.arange(45) + 0.5) * np.radians(2)
     pr = (np.arange(90) + 0.5) * np.radians(4)

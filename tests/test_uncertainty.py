@@ -16,26 +16,24 @@ from conftest import DATA, REPO
 from scipy.optimize import minimize
 from scipy.stats import norm
 
-import brdfjax.fitting
-from brdfjax.bands import curve_bands, reflectance_bands
-from brdfjax.bounds import make_bounds, to_unit
+import brdfjax.fitting.fit
 from brdfjax.cli import main
-from brdfjax.fitting import fit, split
-from brdfjax.hemispherical import reflectance
-from brdfjax.laplace import estimate_noise, laplace_approximation
-from brdfjax.measurements import Measurements
-from brdfjax.model import PAPER_SAMPLES, PARAMETER_NAMES, projected_brdf
-from brdfjax.posterior import (
-    UncertaintyWarning,
+from brdfjax.data.measurements import Measurements
+from brdfjax.data.synthetic import paper_sample
+from brdfjax.fitting.bounds import make_bounds, to_unit
+from brdfjax.fitting.fit import fit, split
+from brdfjax.models.hemispherical import reflectance
+from brdfjax.models.paper import PAPER_SAMPLES, PARAMETER_NAMES, projected_brdf
+from brdfjax.uncertainty.bands import curve_bands, reflectance_bands
+from brdfjax.uncertainty.laplace import estimate_noise, laplace_approximation
+from brdfjax.uncertainty.likelihood import (
     build_posterior,
-    emcee_snooker_is_fixed,
     log_likelihood,
     log_posterior,
     log_posterior_batch,
-    sample_posterior,
-    snooker_move,
 )
-from brdfjax.synthetic import paper_sample
+from brdfjax.uncertainty.mcmc import emcee_snooker_is_fixed, sample_posterior, snooker_move
+from brdfjax.uncertainty.result import UncertaintyWarning
 
 TRUTH = np.array(PAPER_SAMPLES["white_paint"], dtype=float)
 HELD_OUT = [21, 52]
@@ -187,7 +185,7 @@ def test_laplace_std_matches_the_spread_of_refits(training, white_laplace):
 def test_laplace_repeats_exactly_without_recompiling(white_paint, white_fit, white_laplace):
     """Warm calls reuse the compiled stages and give the same answer (how fast a warm call
     is belongs to benchmarks/bench_uncertainty.py, not to a unit test)."""
-    from brdfjax import laplace
+    from brdfjax.uncertainty import laplace
 
     stages = (laplace._weighted_problem, laplace._keep_finite, laplace._curvature)
     compiled = [f._cache_size() for f in stages]
@@ -398,16 +396,16 @@ def test_reflectance_bands_contain_the_truth(white_mcmc):
 @pytest.fixture
 def fit_once(monkeypatch, white_fit):
     """The CLI's fit replaced by the module's, so CLI tests do not refit."""
-    monkeypatch.setattr(brdfjax.fitting, "fit", lambda *args, **kwargs: white_fit)
+    monkeypatch.setattr(brdfjax.fitting.fit, "fit", lambda *args, **kwargs: white_fit)
 
 
 def test_cli_uncertainty_none_does_no_uncertainty_work(fit_once, monkeypatch, tmp_path, capsys):
     def forbidden(*args, **kwargs):
         raise AssertionError("--uncertainty none must not compute uncertainty")
 
-    for module, name in [("brdfjax.laplace", "laplace_approximation"),
-                         ("brdfjax.posterior", "sample_posterior"),
-                         ("brdfjax.bands", "curve_bands"), ("brdfjax.bands", "reflectance_bands")]:
+    for module, name in [("brdfjax.uncertainty.laplace", "laplace_approximation"),
+                         ("brdfjax.uncertainty.mcmc", "sample_posterior"),
+                         ("brdfjax.uncertainty.bands", "curve_bands"), ("brdfjax.uncertainty.bands", "reflectance_bands")]:
         monkeypatch.setattr(sys.modules[module], name, forbidden)
     out = tmp_path / "fit.json"
     assert main(["fit", str(DATA / "synthetic" / "white_paint.csv"), "--uncertainty", "none",
@@ -417,8 +415,8 @@ def test_cli_uncertainty_none_does_no_uncertainty_work(fit_once, monkeypatch, tm
 
 
 def test_importing_uncertainty_does_not_import_emcee():
-    code = ("import sys, brdfjax.commands.fitting, brdfjax.laplace, brdfjax.bands, "
-            "brdfjax.posterior; assert 'emcee' not in sys.modules, 'emcee imported'; "
+    code = ("import sys, brdfjax.commands.fitting, brdfjax.uncertainty.laplace, brdfjax.uncertainty.bands, "
+            "brdfjax.uncertainty.mcmc; assert 'emcee' not in sys.modules, 'emcee imported'; "
             "assert 'h5py' not in sys.modules and 'corner' not in sys.modules")
     subprocess.run([sys.executable, "-c", code], check=True, cwd=REPO)
 
@@ -448,7 +446,7 @@ def test_cli_says_which_loss_the_fit_minimised(monkeypatch, white_fit, capsys):
     import dataclasses
 
     balanced = dataclasses.replace(white_fit, loss="balanced")
-    monkeypatch.setattr(brdfjax.fitting, "fit", lambda *args, **kwargs: balanced)
+    monkeypatch.setattr(brdfjax.fitting.fit, "fit", lambda *args, **kwargs: balanced)
     assert main(["fit", str(DATA / "synthetic" / "white_paint.csv"), "--validate-incidence",
                  "21,52", "--loss", "balanced"]) == 0
     out = capsys.readouterr().out

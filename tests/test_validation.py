@@ -8,11 +8,11 @@ import transcription
 from conftest import DATA
 
 from brdfjax.cli import main
-from brdfjax.formats import load
-from brdfjax.measurements import Measurements
-from brdfjax.model import brdf
-from brdfjax.prediction import calibrate, predict
-from brdfjax.validation import cross_validate, incidence_groups
+from brdfjax.data.formats import load
+from brdfjax.data.measurements import Measurements
+from brdfjax.models.paper import brdf
+from brdfjax.prediction.cross_validation import cross_validate, incidence_groups
+from brdfjax.prediction.intervals import calibrate, predict
 
 GGX = (0.5, 0.05, 0.9, 0.1)
 
@@ -57,7 +57,7 @@ def test_folds_hold_out_each_incidence_and_score_it_independently(ggx_data, ggx_
 
 @pytest.fixture(scope="module")
 def ggx_fit(ggx_data):
-    from brdfjax.fitting import fit
+    from brdfjax.fitting.fit import fit
 
     return fit(ggx_data, model="ggx")
 
@@ -84,8 +84,8 @@ def test_discrepancy_of_an_exact_model_is_noise(white_paint):
     """Where the model is exact (the paper's white paint, 2.5 % noise) the process learns
     nothing but the noise: its mean correction is below the noise, and the intervals of a
     held-out incidence shrink to the noise's own (95 %: 1.96 x 2.5 %, within 1.5x)."""
-    from brdfjax.fitting import fit
-    from brdfjax.model import PAPER_SAMPLES
+    from brdfjax.fitting.fit import fit
+    from brdfjax.models.paper import PAPER_SAMPLES
 
     clean = np.asarray(brdf(PAPER_SAMPLES["white_paint"], white_paint.theta_i,
                             white_paint.theta_r, white_paint.phi_r))
@@ -102,7 +102,7 @@ def test_discrepancy_of_an_exact_model_is_noise(white_paint):
 
 def test_prediction_says_where_extrapolation_is_not_calibrated(ggx_data, ggx_validation,
                                                                ggx_fit):
-    from brdfjax.prediction import PredictionWarning
+    from brdfjax.prediction.intervals import PredictionWarning
 
     calibration = calibrate(ggx_data, ggx_validation, discrepancy="none")
     assert calibration.reach == (0.0, 85.0)  # 10-70 deg, outermost spacings 15 deg
@@ -119,7 +119,7 @@ def test_exported_tables_reproduce_the_corrected_predictions(tmp_path, ggx_data,
                                                             ggx_validation, ggx_fit):
     """A ray tracer cannot run the process: the .bsdf and .astm tables of model x
     discrepancy give `predict`'s values at their nodes (7 significant digits)."""
-    from brdfjax.formats import astm, zemax
+    from brdfjax.data.formats import astm, zemax
 
     calibration = calibrate(ggx_data, ggx_validation, discrepancy="gp", fitted=ggx_fit.vector)
     correction = calibration.discrepancy
@@ -140,7 +140,7 @@ def test_exported_tables_reproduce_the_corrected_predictions(tmp_path, ggx_data,
 
 def test_fit_predict_writes_the_corrected_prediction_beside_the_model(tmp_path, ggx_data,
                                                                      capsys):
-    from brdfjax.formats import csv
+    from brdfjax.data.formats import csv
 
     source = tmp_path / "ggx.csv"
     csv.write(ggx_data, source)
@@ -199,7 +199,7 @@ def test_models_command_ranks_by_cv_error(tmp_path, capsys):
 def test_the_models_plot_keeps_its_legends_off_the_curves(tmp_path):
     """Each panel's legend stands outside its axes (it covered the curves of two panels)."""
     from brdfjax.plot import plot_models
-    from brdfjax.selection import compare_models
+    from brdfjax.prediction.selection import compare_models
 
     data = load(DATA / "synthetic" / "white_paint.csv")
     comparison = compare_models(data, ["lambert", "five"], discrepancy="none")

@@ -168,7 +168,7 @@ MODELS = {"five": brdf, "torrance-sparrow": torrance_sparrow, "ggx": ggx,
           "ggx+ggx": ggx_ggx, "abg+lambert": abg_lambert}
 
 
-# ---- Eq. (9) by an integrator that shares nothing with brdfjax.hemispherical
+# ---- Eq. (9) by an integrator that shares nothing with brdfjax.models.hemispherical
 
 @functools.cache
 def reflectance(name, params, ti, peak="back-scatter", tol=1e-7):

@@ -14,8 +14,8 @@ def parameters(text: str, model: str = "five") -> np.ndarray:
 
     The paper's samples (``white_paint``, ...) are parameters of the five-parameter model.
     """
-    from brdfjax.model import PAPER_SAMPLES
     from brdfjax.models import get
+    from brdfjax.models.paper import PAPER_SAMPLES
 
     names = get(model).names
     if text in PAPER_SAMPLES:
@@ -57,7 +57,7 @@ def angles(text: str) -> np.ndarray:
 
 
 def reader_options(args) -> dict:
-    """Keyword options for `brdfjax.formats.load` from the common file options."""
+    """Keyword options for `brdfjax.data.formats.load` from the common file options."""
     options = {}
     if getattr(args, "blank", None):
         options["blank"] = args.blank

@@ -25,9 +25,9 @@ import sys
 from pathlib import Path
 
 from brdfjax.commands import add_reader_options, check_writable, reader_options
-from brdfjax.formats import READABLE
-from brdfjax.formats.cube import SUFFIXES as CUBE_SUFFIXES
-from brdfjax.formats.cube import is_cube
+from brdfjax.data.formats import READABLE
+from brdfjax.data.formats.cube import SUFFIXES as CUBE_SUFFIXES
+from brdfjax.data.formats.cube import is_cube
 
 AUTO_SAMPLES = 8  # --model auto chooses on at most this many samples
 SEARCH_OPTIONS = {"population_size": "genetic-search population",
@@ -49,7 +49,7 @@ def register(subparsers) -> None:
                         "RT-300S blank_*.xls) or glob patterns such as 'runs/*.xls'; or "
                         "one HDF5 cube of many samples (.h5, .hdf5, .nc: datasets theta_i, "
                         "theta_r, phi_r in degrees, brdf (N, P) with NaN missing, optional "
-                        "sigma and sample; see brdfjax.formats.cube)")
+                        "sigma and sample; see brdfjax.data.formats.cube)")
     p.add_argument("--out", required=True, metavar="CSV|H5",
                    help="results file (CSV; for a cube, .h5); samples already in it are "
                         "not refitted, and a rerun with other options refuses")
@@ -152,11 +152,11 @@ def result_options(args, model) -> dict:
     its default is the same run as one left out), and the bounds to the whole box of the
     model (so ``--bound b=-150:80`` equals the default box it spells out). ``--chunk-size``
     and ``--scheduler`` are left out: they change where and how samples are grouped, not
-    their results (`brdfjax.batch.fit_batch`).
+    their results (`brdfjax.fitting.batch.fit_batch`).
     """
-    from brdfjax.batch import FIT_DEFAULTS
-    from brdfjax.bounds import make_bounds
     from brdfjax.commands.fitting import parse_bounds
+    from brdfjax.fitting.batch import FIT_DEFAULTS
+    from brdfjax.fitting.bounds import make_bounds
 
     box = make_bounds(parse_bounds(args.bound), model=model)
     return {"model": model.name, "seed": args.seed,
@@ -219,14 +219,14 @@ def write_options(out, settings: dict) -> None:
     """Keep ``settings`` beside ``out`` (`options_path`), for `check_options` on a rerun."""
     import json
 
-    from brdfjax.formats import write_atomically
+    from brdfjax.data.formats import write_atomically
 
     write_atomically(options_path(out), json.dumps(settings, indent=1) + "\n")
 
 
 def write_results(path, rows: dict, order, columns) -> None:
     """Rewrite the results CSV atomically: rows in input order, then any others."""
-    from brdfjax.formats import write_atomically
+    from brdfjax.data.formats import write_atomically
 
     text = io.StringIO()
     writer = csv.DictWriter(text, columns, lineterminator="\n")
@@ -264,7 +264,7 @@ def split_key(key: str) -> tuple[str, float | None]:
 
 
 def row(key: str, result: dict, columns, model: str) -> dict:
-    """A CSV row from a `brdfjax.fitting.FitResult.to_dict` (numbers as exact reprs).
+    """A CSV row from a `brdfjax.fitting.fit.FitResult.to_dict` (numbers as exact reprs).
 
     ``at_bound`` names the parameters at a bound of the box and ``poor_incidences`` the
     incidences (deg) whose E exceeds 3x the overall E, space-separated: what `fit` flags.
@@ -301,7 +301,7 @@ def run_batch(args) -> int:
     if args.model != "auto":
         get(args.model)  # an unknown name fails before any file is read
     if args.scheduler is not None:
-        from brdfjax.cluster import require_dask
+        from brdfjax.fitting.cluster import require_dask
 
         require_dask()  # before any file is read
     if any(is_cube(item) for item in args.inputs):
@@ -374,12 +374,12 @@ def run_batch(args) -> int:
 
 def run_cube(args) -> int:
     """``brdfjax batch CUBE.h5 --out RESULTS.h5``: every sample of one HDF5 cube
-    (`brdfjax.formats.cube`), streamed a chunk at a time, journalled, resumable."""
+    (`brdfjax.data.formats.cube`), streamed a chunk at a time, journalled, resumable."""
     import numpy as np
     from tqdm import tqdm
 
     from brdfjax.commands.fitting import parse_bounds
-    from brdfjax.formats.cube import Cube, CubeResults
+    from brdfjax.data.formats.cube import Cube, CubeResults
     from brdfjax.models import get
 
     if len(args.inputs) != 1:
@@ -473,8 +473,8 @@ def spectral_request(text):
 def spectral_samples(files, request) -> list[str]:
     """One `sample_key` per wavelength of every file (a file that cannot be read stays one
     key, and fails when it is loaded)."""
-    from brdfjax.formats import load_spectral
-    from brdfjax.measurements import DataError
+    from brdfjax.data.formats import load_spectral
+    from brdfjax.data.measurements import DataError
 
     keys = []
     for file in files:
@@ -494,7 +494,7 @@ def json_name(key: str) -> str:
 
 
 def _plot_spectral(path, rows, names) -> None:
-    from brdfjax.formats import replace_atomically
+    from brdfjax.data.formats import replace_atomically
     from brdfjax.plot import plot_spectral
 
     def number(text):
@@ -510,8 +510,8 @@ def _plot_spectral(path, rows, names) -> None:
 
 def _local_devices() -> list:
     """The JAX devices of a local batch, one per core on a CPU; caches on."""
-    from brdfjax.batch import use_every_core
     from brdfjax.cache import enable
+    from brdfjax.fitting.batch import use_every_core
 
     devices = use_every_core()
     enable()
@@ -523,7 +523,7 @@ def _chunks(pending, args, unread: dict, names):
 
     A file that cannot be read goes into ``unread`` as a failed result with the reason.
     """
-    from brdfjax.measurements import DataError
+    from brdfjax.data.measurements import DataError
 
     chunk = []
     for key in pending:
@@ -541,7 +541,7 @@ def _chunks(pending, args, unread: dict, names):
 
 def read_sample(key: str, args):
     """The measurements of one sample key: a file, or one wavelength of a spectral file."""
-    from brdfjax.formats import load, load_spectral
+    from brdfjax.data.formats import load, load_spectral
 
     file, wavelength = split_key(key)
     if wavelength is None:
@@ -555,8 +555,8 @@ def choose_model(keys, args, read=None) -> str:
     keeps the CSV's columns, and the samples' parameters, comparable). Said on stderr."""
     import numpy as np
 
-    from brdfjax.measurements import DataError
-    from brdfjax.selection import compare_models, ranked
+    from brdfjax.data.measurements import DataError
+    from brdfjax.prediction.selection import compare_models, ranked
 
     errors, used, reasons = {}, 0, []
     for key in keys:
@@ -591,7 +591,7 @@ def _fit_chunks(chunks, scheduler, options, record) -> list:
         The errors of chunks the cluster could not fit (nothing is recorded for them, so
         a rerun fits them again).
     """
-    from brdfjax.cluster import fit_chunk, fit_on_cluster
+    from brdfjax.fitting.cluster import fit_chunk, fit_on_cluster
 
     if scheduler is None:
         for chunk in chunks:
@@ -614,7 +614,7 @@ def _fit_chunks(chunks, scheduler, options, record) -> list:
 
 
 def _write_json(directory, batch: dict) -> None:
-    from brdfjax.formats import json_text, write_atomically
+    from brdfjax.data.formats import json_text, write_atomically
 
     for key, result in batch.items():
         file, wavelength = split_key(key)

@@ -56,7 +56,7 @@ def register(subparsers) -> None:
 
 
 def run_eval(args) -> None:
-    from brdfjax.model import brdf
+    from brdfjax.models.paper import brdf
 
     ti, tr, pr = np.meshgrid(args.theta_i, args.theta_r, args.phi_r, indexing="ij")
     params = parameters(args.params, args.model)
@@ -68,7 +68,7 @@ def run_eval(args) -> None:
 
 
 def run_reflectance(args) -> None:
-    from brdfjax.hemispherical import energy_warning, reflectance
+    from brdfjax.models.hemispherical import energy_warning, reflectance
 
     rho = np.asarray(reflectance(parameters(args.params, args.model), np.radians(args.theta_i),
                                  model=args.model))
@@ -81,7 +81,7 @@ def run_reflectance(args) -> None:
 
 
 def run_convert(args) -> None:
-    from brdfjax.formats import load, save
+    from brdfjax.data.formats import load, save
 
     check_writable({"output": args.output})
     data = load(args.input, **reader_options(args))
@@ -94,7 +94,7 @@ LISTED_INCIDENCES = 12
 
 
 def run_info(args) -> None:
-    from brdfjax.formats import load
+    from brdfjax.data.formats import load
 
     data = load(args.file, **reader_options(args))
     print(f"file:        {args.file}")
@@ -125,7 +125,7 @@ def describe_incidences(data) -> str:
 
 def describe_repeats(data) -> str:
     """How many geometries were read more than once, and how much their readings differ."""
-    from brdfjax.measurements import repeat_summary
+    from brdfjax.data.measurements import repeat_summary
 
     summary = repeat_summary(data)
     if summary.geometries == 0:

@@ -16,7 +16,7 @@ from brdfjax.commands import (
     check_writable,
     reader_options,
 )
-from brdfjax.prediction import DISCREPANCIES  # NumPy only: --help imports no JAX
+from brdfjax.prediction.intervals import DISCREPANCIES  # NumPy only: --help imports no JAX
 
 DATA = Path(__file__).resolve().parents[2] / "data"
 # --predict with the default model names another model when that one's held-out error is
@@ -167,21 +167,21 @@ def held_out(data, args) -> list:
 
 
 def run_fit(args) -> None:
-    from brdfjax.bounds import make_bounds
     from brdfjax.cache import enable
-    from brdfjax.formats import load
-    from brdfjax.posterior import inline_dispatch
+    from brdfjax.data.formats import load
+    from brdfjax.fitting.bounds import make_bounds
+    from brdfjax.uncertainty.mcmc import inline_dispatch
 
     inline_dispatch()  # one device and many small calls (emcee): no worker-thread hand-off
     enable()
-    from brdfjax.fitting import fit
+    from brdfjax.fitting.fit import fit
 
     if args.plot_corner and args.uncertainty == "none":
         raise ValueError("--plot-corner needs --uncertainty laplace or mcmc")
     if bool(args.predict) != bool(args.predict_out):
         raise ValueError("--predict GEOMETRY and --predict-out PRED.csv go together")
     if args.uncertainty == "mcmc":
-        from brdfjax.posterior import require_emcee
+        from brdfjax.uncertainty.mcmc import require_emcee
 
         require_emcee()  # before the fit, not after it
     for path in args.export:
@@ -195,7 +195,7 @@ def run_fit(args) -> None:
     data = load(args.file, **reader_options(args))
     geometry = None
     if args.predict:  # read and checked like the output paths: before any fitting
-        from brdfjax.formats import load_geometry
+        from brdfjax.data.formats import load_geometry
 
         geometry = load_geometry(args.predict, **reader_options(args))
     if args.model == "auto":
@@ -212,7 +212,7 @@ def run_fit(args) -> None:
     if result.status == "failed":
         result = dataclasses.replace(result, message=failure_reason())
         if args.json:
-            from brdfjax.formats import json_text, write_atomically
+            from brdfjax.data.formats import json_text, write_atomically
 
             write_atomically(args.json, json_text(result.to_dict()))
         written = f" (the result, status failed, is in {args.json})" if args.json else ""
@@ -228,10 +228,10 @@ def run_fit(args) -> None:
 def run_per_incidence(data, args) -> None:
     """``--per-incidence``: each incidence fitted on its own, in one batched call; with
     ``--model abg`` the TIS checks, FRED's parameters and the Zemax catalog entry."""
-    from brdfjax.bounds import make_bounds
-    from brdfjax.formats import json_text, write_atomically
+    from brdfjax.data.formats import json_text, write_atomically
+    from brdfjax.fitting.bounds import make_bounds
     from brdfjax.models import get
-    from brdfjax.validation import fit_per_incidence
+    from brdfjax.prediction.cross_validation import fit_per_incidence
 
     model = get(args.model)
     if args.abg_out and model.name != "abg":
@@ -257,7 +257,7 @@ def run_per_incidence(data, args) -> None:
     payload = {"model": model.name, "per_incidence": [
         {"incidence_deg": degrees, **result.to_dict()} for degrees, result in fits]}
     if model.name == "abg":
-        from brdfjax.formats.abg import abg_rows, catalog_entry, report
+        from brdfjax.data.formats.abg import abg_rows, catalog_entry, report
 
         rows = abg_rows(fits)
         print(report(rows))
@@ -279,7 +279,7 @@ def failure_reason() -> str:
     """Why a fit found no finite E of Eq. (6), in words a user can act on.
 
     (Extreme values that would overflow Eq. 6 are refused when the data are read,
-    `brdfjax.measurements.validate`, so a failed fit is the model's doing.)
+    `brdfjax.data.measurements.validate`, so a failed fit is the model's doing.)
     """
     return ("no Levenberg-Marquardt start reached a finite E of Eq. (6): the model "
             "overflowed or gave NaN wherever it was tried; check the data for extreme "
@@ -287,8 +287,9 @@ def failure_reason() -> str:
 
 
 def choose_model(data, seed: int) -> str:
-    """``--model auto``: the model with the lowest cv_error (`brdfjax.selection`), said aloud."""
-    from brdfjax.selection import compare_models
+    """``--model auto``: the model with the lowest cv_error (`brdfjax.prediction.selection`), said
+    aloud."""
+    from brdfjax.prediction.selection import compare_models
 
     comparison = compare_models(data, seed=seed, discrepancy="none")  # ranked by cv_error
     print(f"--model auto: {comparison.recommendation()}")
@@ -301,11 +302,11 @@ def validate_and_predict(result, data, args, geometry=None):
     ``geometry`` is the ``--predict`` file, read before the fit (`run_fit`).
 
     Returns:
-        The conformal `brdfjax.prediction.Calibration` (for the plot's predictive bands and
-        the JSON) and the `brdfjax.prediction.Prediction` (None without --predict).
+        The conformal `brdfjax.prediction.intervals.Calibration` (for the plot's predictive bands
+        and the JSON) and the `brdfjax.prediction.intervals.Prediction` (None without --predict).
     """
-    from brdfjax.formats import write_atomically
-    from brdfjax.prediction import predict
+    from brdfjax.data.formats import write_atomically
+    from brdfjax.prediction.intervals import predict
 
     calibration, validation = calibrated(result, args)
     if args.cv:
@@ -339,12 +340,12 @@ def validate_and_predict(result, data, args, geometry=None):
 def calibrated(result, args, model=None):
     """The conformal calibration of ``result`` (or of ``model`` fitted to the same data),
     and the cross-validation it came from."""
-    from brdfjax.prediction import calibrate
-    from brdfjax.validation import cross_validate
+    from brdfjax.prediction.cross_validation import cross_validate
+    from brdfjax.prediction.intervals import calibrate
 
     full = result
     if model is not None:
-        from brdfjax.fitting import fit
+        from brdfjax.fitting.fit import fit
 
         full = fit(result.training, model=model, seed=args.seed, loss=result.loss)
     validation = cross_validate(full.training, full.model, seed=args.seed, bounds=full.bounds)
@@ -371,9 +372,9 @@ def suggest_model(result, args, validation, calibration) -> None:
 def predictive_bands(result, incidences_deg, calibration) -> dict:
     """The prediction and its 68/95 % bands of ``f_r cos(theta_r)`` along the plot's in-plane
     curves: ``{incidence: (signed_deg, prediction, lo68, hi68, lo95, hi95)}``."""
-    from brdfjax.measurements import Measurements
+    from brdfjax.data.measurements import Measurements
     from brdfjax.plot import curve_angles
-    from brdfjax.prediction import predict
+    from brdfjax.prediction.intervals import predict
 
     bands = {}
     for incidence in incidences_deg:
@@ -389,7 +390,7 @@ def predictive_bands(result, incidences_deg, calibration) -> dict:
 
 
 def estimate_uncertainty(result, data, args):
-    """The `~brdfjax.posterior.UncertaintyResult` asked for by ``--uncertainty``, or None.
+    """The `~brdfjax.uncertainty.result.UncertaintyResult` asked for by ``--uncertainty``, or None.
 
     Nothing of the other method is imported or computed: ``none`` does no work at all, and
     ``laplace`` never imports emcee. Warnings go into the printed table, not to stderr.
@@ -399,15 +400,15 @@ def estimate_uncertainty(result, data, args):
     if result.status == "failed":
         print("uncertainty: none, the fit failed")
         return None
-    from brdfjax.posterior import UncertaintyWarning
+    from brdfjax.uncertainty.result import UncertaintyWarning
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UncertaintyWarning)
         if args.uncertainty == "laplace":
-            from brdfjax.laplace import laplace_approximation
+            from brdfjax.uncertainty.laplace import laplace_approximation
 
             return laplace_approximation(data, result, seed=args.seed)
-        from brdfjax.posterior import sample_posterior
+        from brdfjax.uncertainty.mcmc import sample_posterior
 
         return sample_posterior(data, result, walkers=args.walkers, max_steps=args.mcmc_steps,
                                 seed=args.seed, chain_path=args.chain)
@@ -422,13 +423,13 @@ def write_outputs(result, data, args, uncertainty=None, calibration=None,
     95 % curve bands around the fitted curves (not where the approximation is
     untrustworthy: the reason is printed instead), and --plot-corner draws the posterior.
     With a ``calibration`` (--cv or --predict), --plot also draws the predictive bands
-    (the legend names each shade): where a new measurement falls (`brdfjax.prediction`),
+    (the legend names each shade): where a new measurement falls (`brdfjax.prediction.intervals`),
     around the prediction (dotted where the discrepancy corrects the model), and --json
     gains a "prediction" entry (the calibration, the learned process, and the
     ``prediction``'s summary). Data that are not in the
     plane of incidence are drawn as polar maps of data, model and residual.
     """
-    from brdfjax.formats import json_text, replace_atomically, write_atomically
+    from brdfjax.data.formats import json_text, replace_atomically, write_atomically
 
     record = result.to_dict()
     if calibration is not None:
@@ -436,7 +437,7 @@ def write_outputs(result, data, args, uncertainty=None, calibration=None,
                                 **(prediction.to_dict() if prediction is not None else {})}
     bands = None
     if uncertainty is not None:
-        from brdfjax.bands import curve_bands, reflectance_bands
+        from brdfjax.uncertainty.bands import curve_bands, reflectance_bands
 
         if args.json:
             record["uncertainty"] = uncertainty.to_dict()
@@ -452,7 +453,7 @@ def write_outputs(result, data, args, uncertainty=None, calibration=None,
     if args.json:
         write_atomically(args.json, json_text(record))
     if args.plot and not data.in_plane:
-        from brdfjax.objective import brdf_values, prepare
+        from brdfjax.fitting.objective import brdf_values, prepare
         from brdfjax.plot import plot_polar_maps
 
         predicted = np.asarray(brdf_values(result.vector, prepare(data, result.model),
@@ -501,10 +502,10 @@ EXPORTS = (".bsdf", ".astm")
 
 
 def export(path, result, data, args, correction) -> None:
-    """Write ``--export``'s table (`brdfjax.formats.zemax.write_model` or
-    `brdfjax.formats.astm.write_model_astm`) on the ``--export-*`` grid, and say its TIS."""
-    from brdfjax.formats.astm import write_model_astm
-    from brdfjax.formats.zemax import model_table, tis, write_model
+    """Write ``--export``'s table (`brdfjax.data.formats.zemax.write_model` or
+    `brdfjax.data.formats.astm.write_model_astm`) on the ``--export-*`` grid, and say its TIS."""
+    from brdfjax.data.formats.astm import write_model_astm
+    from brdfjax.data.formats.zemax import model_table, tis, write_model
 
     step = args.export_step
     incidences = np.sort(np.asarray(args.export_incidences, float))
@@ -527,11 +528,11 @@ def export(path, result, data, args, correction) -> None:
 
 def incidence_lines(errors: dict, result) -> list[str]:
     """One line of E per incidence; for scattered incidences, per incidence bin."""
-    from brdfjax.validation import MAX_FOLDS, incidence_groups
+    from brdfjax.data.measurements import MAX_FOLDS, incidence_groups
 
     if len(errors) <= MAX_FOLDS:
         return [f"        {deg:6g} deg: E = {100 * e:.4g} %" for deg, e in errors.items()]
-    from brdfjax.objective import prepare, projected, relative_error, targets
+    from brdfjax.fitting.objective import prepare, projected, relative_error, targets
 
     data = result.training
     fitted = np.asarray(projected(result.vector, prepare(data, result.model), result.model))
@@ -555,9 +556,9 @@ def poor_incidences(errors: dict, overall: float) -> list[float]:
 
 
 def summary(result, name: str) -> str:
-    """A readable table of a `brdfjax.fitting.FitResult`, with the reflectance of Eq. (9)."""
-    from brdfjax.bounds import to_unit
-    from brdfjax.hemispherical import energy_warning, reflectance
+    """A readable table of a `brdfjax.fitting.fit.FitResult`, with the reflectance of Eq. (9)."""
+    from brdfjax.fitting.bounds import to_unit
+    from brdfjax.models.hemispherical import energy_warning, reflectance
 
     names = result.model.names
     width = max(3, *map(len, names))
@@ -664,10 +665,10 @@ def run_demo(args) -> None:
     from brdfjax.cache import enable
 
     cache = enable()
-    from brdfjax.fitting import fit
-    from brdfjax.formats import load, replace_atomically
-    from brdfjax.hemispherical import energy_warning, reflectance
-    from brdfjax.model import PAPER_ERRORS_PERCENT, PAPER_SAMPLES
+    from brdfjax.data.formats import load, replace_atomically
+    from brdfjax.fitting.fit import fit
+    from brdfjax.models.hemispherical import energy_warning, reflectance
+    from brdfjax.models.paper import PAPER_ERRORS_PERCENT, PAPER_SAMPLES
     from brdfjax.plot import plot_fit, plot_hemisphere
 
     print("Reflectance rho(theta_i) of Eq. (9) for the paper's parameters")
@@ -707,7 +708,7 @@ def run_demo(args) -> None:
 
 def run_compare(args) -> None:
     from brdfjax.compare import compare, format_table
-    from brdfjax.formats import load
+    from brdfjax.data.formats import load
 
     data = load(args.file, **reader_options(args))
     print(format_table(compare(data, seed=args.seed, repeats=args.repeats, model=args.model)))

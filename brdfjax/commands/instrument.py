@@ -138,7 +138,7 @@ def run_simulate(args) -> None:
         enable()
         sample = ModelSample(parameters(args.params, args.model), args.model)
     else:
-        from brdfjax.formats import load
+        from brdfjax.data.formats import load
 
         sample = DataSample(load(args.data))
     device = Device(sample, reference_reflectance=args.reference_reflectance, gain=args.gain,

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from brdfjax.commands import add_reader_options, reader_options
-from brdfjax.prediction import DISCREPANCIES  # NumPy only: --help imports no JAX
+from brdfjax.prediction.intervals import DISCREPANCIES  # NumPy only: --help imports no JAX
 
 
 def register(subparsers) -> None:
@@ -33,8 +33,8 @@ def register(subparsers) -> None:
 
 def run_models(args) -> None:
     from brdfjax.cache import enable
-    from brdfjax.formats import json_text, load, replace_atomically, write_atomically
-    from brdfjax.selection import compare_models
+    from brdfjax.data.formats import json_text, load, replace_atomically, write_atomically
+    from brdfjax.prediction.selection import compare_models
 
     enable()
     data = load(args.file, **reader_options(args))

@@ -15,7 +15,7 @@ the same journal and plan reads only what is missing, so an interrupted acquisit
 without repeating or losing a point (a line cut short by a crash is dropped). A journal
 written for another plan is refused. The journal keeps raw voltages, so ``rho_ref`` may be
 changed on a rerun. At the end the result is written as a brdfjax CSV (or any format
-`brdfjax.formats.save` writes) that ``brdfjax fit`` reads.
+`brdfjax.data.formats.save` writes) that ``brdfjax fit`` reads.
 """
 
 from __future__ import annotations
@@ -30,8 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
+from brdfjax.data.measurements import DataError, Measurements
 from brdfjax.instrument.plan import Plan
-from brdfjax.measurements import DataError, Measurements
 
 JOURNAL_VERSION = 1
 TARGETS = ("sample", "reference")
@@ -167,7 +167,7 @@ def measure(port: str, plan: Plan, out, *, journal=None, reference_reflectance: 
             "journal": str(journal_path)})
     finally:
         record.close()
-    from brdfjax.formats import save
+    from brdfjax.data.formats import save
 
     save(data, out)
     return MeasureResult(data, len(todo), resumed, resends, Path(journal_path))

@@ -27,8 +27,8 @@ from functools import cached_property
 
 import numpy as np
 
+from brdfjax.data.measurements import DataError
 from brdfjax.instrument.protocol import MOTOR_NAMES, detector_direction, source_detector_angle
-from brdfjax.measurements import DataError
 
 
 @dataclass(frozen=True)

@@ -74,7 +74,7 @@ class ModelSample:
 
         import jax
 
-        from brdfjax.model import brdf
+        from brdfjax.models.paper import brdf
 
         self.params = np.asarray(params, dtype=float)
         self._brdf = jax.jit(functools.partial(brdf, model=model))

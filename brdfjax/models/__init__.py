@@ -14,10 +14,13 @@
 | ``A+B`` | the parts', repeats ``_2`` | `brdfjax.models.sum` (any sum: ``ggx+backscatter``) |
 
 A model is found by its module: every module of this package whose name does not start
-with ``_`` is imported on the first lookup, and each `Model` subclass in it with a ``name``
-is registered. Adding a model is therefore one new file (see the README, "Adding a model"),
-and it then takes part in sums with no change elsewhere. A name with ``+`` is a `Sum` of the
-named models (`brdfjax.models.sum`); sums are not listed by `available`.
+with ``_`` is imported on the first lookup, and each `Model` subclass defined in it with a
+``name`` is registered. The package also holds what every model shares: `base` (the
+`Model` interface), `geometry` (the angle terms), `paper` (evaluating a model on angles)
+and `hemispherical` (reflectance, Eq. 9); they define no model. Adding a model is therefore one new
+file (see the README, "Adding a model"), and it then takes part in sums with no change elsewhere. A
+name with ``+`` is a `Sum` of the named models (`brdfjax.models.sum`); sums are not listed by
+`available`.
 """
 
 from __future__ import annotations
@@ -39,9 +42,10 @@ def _discover() -> dict[str, type[Model]]:
         for module in pkgutil.iter_modules(__path__):
             if module.name.startswith("_") or module.name == "base":
                 continue
-            for _, cls in inspect.getmembers(importlib.import_module(f"{__name__}.{module.name}"),
-                                             inspect.isclass):
-                if issubclass(cls, Model) and isinstance(cls.__dict__.get("name"), str):
+            name = f"{__name__}.{module.name}"
+            for _, cls in inspect.getmembers(importlib.import_module(name), inspect.isclass):
+                if (issubclass(cls, Model) and cls.__module__ == name
+                        and isinstance(cls.__dict__.get("name"), str)):
                     _registry[cls.name] = cls
         order = [DEFAULT] + sorted(set(_registry) - {DEFAULT})
         _registry.update({name: _registry.pop(name) for name in order})

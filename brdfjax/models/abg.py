@@ -15,7 +15,7 @@ taken as its limit, 0 for ``g > 0`` and 1 for ``g = 0``, with zero derivatives t
 ``exp((g/2) log x^2)`` only where ``x > 0``). Nothing divides by a cosine: 90 deg is inside
 the domain. A enters linearly; B (log10, 1e-8..1) and g (linear, 0..4) are searched.
 Zemax requires ``B > 1e-12`` unless ``g = 0``, and FRED that ``A / B`` times the projected
-solid angle at the specular be at most 1: `brdfjax.formats.abg` reports both checks.
+solid angle at the specular be at most 1: `brdfjax.data.formats.abg` reports both checks.
 """
 
 from __future__ import annotations

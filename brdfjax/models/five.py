@@ -5,7 +5,7 @@
 with the ellipsoidal facet distribution ``D = kr^2 cos a / (1 + (kr^2 - 1) cos^2 a)`` (the
 paper's text; Eq. 5 as printed drops the square), the Fresnel stand-in
 ``R0 = exp(b (1 - cos g)^a)`` and the empirical shadowing factor G of Eq. (3)-(4)
-(`brdfjax.geometry`). The parameters are always ordered ``kb, kr, a, b, kd``; kb and kd
+(`brdfjax.models.geometry`). The parameters are always ordered ``kb, kr, a, b, kd``; kb and kd
 enter linearly.
 """
 
@@ -16,8 +16,8 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-from brdfjax.geometry import PAPER_CONSTANTS, Scene, ShadowingConstants, scene
 from brdfjax.models.base import Model, Parameter, array_module
+from brdfjax.models.geometry import PAPER_CONSTANTS, Scene, ShadowingConstants, scene
 
 PARAMETER_NAMES = ("kb", "kr", "a", "b", "kd")
 """The parameters' names, in the order of every array, file and table."""
@@ -138,10 +138,10 @@ class FiveParameter(Model):
         start added (exploratory, against a long multi-start search). a starts small but
         not at its default bound, so that LM can move it either way: 0.025 and 0.063 did
         as well, 0.016 and 0.16 worse. Where b's bounds exclude 0 the member comes back
-        unchanged (a repeat, which `brdfjax.polish.polish` skips); a outside its bounds is
+        unchanged (a repeat, which `brdfjax.fitting.polish.polish` skips); a outside its bounds is
         clipped to them.
         """
-        from brdfjax.bounds import to_unit
+        from brdfjax.fitting.bounds import to_unit
 
         wanted = to_unit(jnp.ones(5).at[2].set(FRESNEL_FREE_A).at[3].set(0.0), bounds)
         wanted = jnp.clip(wanted, 0.0, 1.0)

@@ -15,7 +15,7 @@ back-scatter, t = 0 where the shadows vanish); ``D^2`` is written with the cosin
 multiplied through.
 
 All three coefficients enter linearly: the fit is one exact, bounded linear solve
-(`brdfjax.objective.solve_linear`), nothing is searched. Each is >= 0 by default
+(`brdfjax.fitting.objective.solve_linear`), nothing is searched. Each is >= 0 by default
 (negative kernel weights are unphysical).
 
 Where MODELS.md leaves a choice: at exactly 90 deg (``ti`` or ``tr``) the kernels are

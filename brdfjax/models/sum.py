@@ -12,7 +12,7 @@ MODELS.md ("Sums of models"):
   first part that has one; the later parts' constants are 0 (two would make the linear
   solve degenerate). A part left with no parameters (``ggx+lambert``'s lambert) is refused.
 - Every part's linear coefficients are the sum's (their columns side by side), solved
-  together and exactly inside the search (`brdfjax.objective.solve_linear`, including each
+  together and exactly inside the search (`brdfjax.fitting.objective.solve_linear`, including each
   part's bounded-sum constraints, `Model.scale_sums`); the parts' nonlinear parameters are
   searched together.
 
@@ -297,7 +297,7 @@ class Sum(Model):
 
     def idle_parts(self, params, bounds) -> list[str]:
         """A sentence for each part whose weight is zero: its shape is then unidentified."""
-        from brdfjax.bounds import to_unit
+        from brdfjax.fitting.bounds import to_unit
 
         unit = np.asarray(to_unit(np.asarray(params, dtype=float), bounds))
         sentences = []

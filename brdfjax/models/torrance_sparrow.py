@@ -4,7 +4,7 @@
 
 with ``th`` the facet tilt in radians, ``td`` the angle of incidence on the facet, ``G`` the
 paper's shadowing of Eq. (3)-(4) with its constants (the same G as the five-parameter
-model, `brdfjax.geometry`), and ``R`` the unpolarised Fresnel reflectance of a dielectric of
+model, `brdfjax.models.geometry`), and ``R`` the unpolarised Fresnel reflectance of a dielectric of
 real index ``n``:
 
     R = ((cos td - n cos tt)^2 / (cos td + n cos tt)^2
@@ -21,9 +21,9 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-from brdfjax.geometry import PAPER_CONSTANTS, ShadowingConstants, scene
 from brdfjax.models._microfacet import half_vector
 from brdfjax.models.base import Model, Parameter, safe_sqrt
+from brdfjax.models.geometry import PAPER_CONSTANTS, ShadowingConstants, scene
 
 
 class TorranceSparrowGeometry(NamedTuple):

@@ -1,0 +1,343 @@
+"""Fitting many measurement sets at once: the hybrid fit of `brdfjax.fit` over a batch.
+
+`fit_batch` runs, for every sample of a catalogue, exactly the fit that `brdfjax.fitting.fit.fit`
+runs with the ``hybrid`` method (genetic search, then screened Levenberg-Marquardt from
+distinct good members), but as one compiled call per chunk of samples:
+
+1. Each sample is checked (`brdfjax.data.measurements.validate`); one that fails becomes a
+   ``failed`` result carrying the reason and never reaches the compiled fit, so it cannot
+   spoil the others. Inside the fit every sample is its own lane with its own status.
+2. Samples with identical angle arrays share one precomputed geometry of the model.
+   Samples are ordered by geometry and cut into chunks of at most ``chunk_size``; a chunk
+   whose samples all share one geometry passes that scene once (``vmap`` with
+   ``in_axes=None``), any other chunk passes one scene per sample.
+3. Ragged data are padded, not looped over: point counts are padded to the next multiple of
+   `brdfjax.fitting.objective.POINT_BUCKET` with zero-weight copies of the sample's first point
+   (as a single fit pads them), then to the chunk's largest sample, and a chunk's
+   sample count to a power of two (at most ``chunk_size``) and a multiple of the device
+   count, with copies of its first sample whose results are dropped. Compilations are so
+   bounded to one per (sample bucket, point bucket, shared geometry or not) and device
+   (XLA compiles for each device it runs on, all devices at once; a chunk uses one device
+   per `SAMPLES_PER_DEVICE` samples at most, so a small chunk compiles once).
+4. Every sample is keyed by ``jax.random.key(seed)`` as `brdfjax.fitting.fit.fit` keys it, so a
+   batched fit follows the same search as the single fit of the same sample and ends at the
+   same E (to 1e-9 relative, tested): both pad points to the same bucket, so they run the
+   same arithmetic, except for a sample padded further to a larger sample of its chunk.
+5. Each step runs its samples ``search_batch`` (genetic search) or ``polish_batch``
+   (Levenberg-Marquardt) at a time side by side under ``vmap``, such groups one after
+   another under ``lax.map`` (`across_samples`); ``None`` vmaps the whole chunk. A vmapped
+   loop runs as long as its slowest lane (an LM that needs 700 steps holds up every sample
+   beside it; 64 starts: 613 ms vmapped, 242 ms looped), and on a CPU even the GA was slower vmapped
+   over many samples than mapped; the defaults are the fastest measured on a 2-core CPU
+   (``BENCHMARKS.md``, section batch). On a GPU, try ``None`` for both.
+6. The sample axis is split over the local devices: each device gets a contiguous block
+   of the chunk's samples, placed on it (``jax.device_put``) and fitted by the same
+   compiled function, dispatched to all devices before waiting on any, so the devices run
+   independently. (A sample axis sharded with ``NamedSharding`` under one ``jit`` was
+   tried first: XLA then runs every loop in lock-step across devices, the search's and each
+   LM's ``while_loop`` waiting for the slowest device at every step, and 2 devices were
+   barely faster than 1.) On a CPU, `use_every_core` makes one single-threaded device per
+   core.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import inspect
+import os
+import time
+from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
+from functools import partial
+
+import jax
+import numpy as np
+
+from brdfjax.cache import stage
+from brdfjax.data.measurements import DataError, Measurements, validate
+from brdfjax.fitting.bounds import Bounds, default_bounds
+from brdfjax.fitting.evolve import EvolveConfig, EvolveResult, evolve
+from brdfjax.fitting.fit import (
+    FitResult,
+    check_bounds,
+    fit,
+    fit_result,
+    polish_summary,
+    search_summary,
+    solved_fit,
+)
+from brdfjax.fitting.objective import Problem, bucket, pad, padded_scene, prepare, problem
+from brdfjax.fitting.polish import PolishResult, polish_population
+from brdfjax.models import Model, get
+
+# The single fit's own defaults, read from its signature: a batched fit is the fit that
+# `brdfjax.fitting.fit.fit` gives each sample, whatever those defaults become.
+FIT_DEFAULTS = {name: inspect.signature(fit).parameters[name].default
+                for name in ("starts", "population_size", "max_generations", "max_steps",
+                             "config", "constants")}
+# Samples side by side in the genetic search and in the LM polish (`across_samples`): the
+# fastest on a 2-core CPU among 1, 4, 16 and the whole chunk (BENCHMARKS.md, section batch).
+SEARCH_BATCH = 1
+POLISH_BATCH = 1
+# Samples per device below which a chunk uses fewer devices (`_run_chunk`): 8 warm fits of
+# 120-716 points take 0.1-0.2 s on one CPU device, about what loading one compiled shape for
+# a second device from the caches takes, while compiling it takes 10-30 s.
+SAMPLES_PER_DEVICE = 8
+
+
+def fit_batch(samples: Sequence[Measurements], *, model: str | Model | None = None,
+              seed: int | Sequence[int] = 0, bounds: Bounds | None = None,
+              chunk_size: int = 256,
+              search_batch: int | None = SEARCH_BATCH, polish_batch: int | None = POLISH_BATCH,
+              devices=None, **options) -> list[FitResult]:
+    """Fit a model to every sample of a batch, one compiled call per chunk.
+
+    Each sample gets the fit that ``brdfjax.fit(sample, model=model, seed=seed)`` gives it (hybrid
+    method, no held-out incidences) and its own status: ``converged``, ``max_steps`` or
+    ``failed``, with `FitResult.message` saying why where there is more to say. Bad data
+    (NaN, no measurements, ...) make that sample ``failed`` with the `DataError` text; the
+    other samples are fitted as if it were not there.
+
+    Args:
+        samples: the measurement sets, any lengths and geometries.
+        model: a name of `brdfjax.models.available` or a `brdfjax.models.Model` (the
+            five-parameter model if None).
+        seed: one seed for every sample, or one per sample.
+        bounds: the search box (the model's `brdfjax.fitting.bounds.default_bounds` if None).
+        chunk_size: at most this many samples per compiled call; bounds the memory,
+            which grows with it where samples run side by side (``search_batch`` or
+            ``polish_batch`` None or large).
+        search_batch, polish_batch: samples side by side under ``vmap`` in the genetic
+            search and in the LM polish (`across_samples`); None for the whole chunk.
+        devices: the devices to split each chunk over (default: ``jax.devices()``).
+        **options: ``starts``, ``population_size``, ``max_generations``, ``max_steps``,
+            ``config``, ``constants``: as in `brdfjax.fitting.fit.fit`, with its defaults
+            (`FIT_DEFAULTS`).
+
+    Returns:
+        One `FitResult` per sample, in the order given. ``timings["total"]`` is the
+        sample's share of its chunk's wall time.
+    """
+    unknown = set(options) - set(FIT_DEFAULTS)
+    if unknown:
+        raise TypeError(f"fit_batch got unknown option(s) {sorted(unknown)}; "
+                        f"it takes {sorted(FIT_DEFAULTS)}")
+    options = {**FIT_DEFAULTS, **options}
+    model = get(model, options.pop("constants"))
+    config = options.pop("config")
+    seeds = np.broadcast_to(np.asarray(seed, dtype=np.int64), (len(samples),))
+    bounds = default_bounds(model) if bounds is None else bounds
+    check_bounds(bounds, model)
+    devices = list(devices or jax.devices())
+    settings = {**options, "search_batch": search_batch, "polish_batch": polish_batch}
+    results: list[FitResult | None] = [None] * len(samples)
+    # Stable sort by geometry, so that samples sharing one land in the same chunks.
+    keys = [_geometry_key(data) for data in samples]
+    rank = {key: number for number, key in enumerate(dict.fromkeys(keys))}
+    order = sorted(range(len(samples)), key=lambda i: rank[keys[i]])
+    for begin in range(0, len(order), chunk_size):
+        # Problems are prepared chunk by chunk, so host and device memory stay bounded.
+        problems, scenes = {}, {}
+        for index in order[begin:begin + chunk_size]:
+            data = samples[index]
+            try:
+                validate(data, path=data.name)
+                if keys[index] not in scenes:  # padded once, shared by its samples
+                    scenes[keys[index]] = padded_scene(prepare(data, model),
+                                                       bucket(len(data)))
+                problems[index] = problem(data, model, geometry=scenes[keys[index]])
+            except (DataError, ValueError) as error:
+                results[index] = _failed(data, str(error), bounds, model)
+        if not problems:
+            continue
+        chunk = list(problems)
+        tic = time.perf_counter()
+        searched, polished = _run_chunk(list(problems.values()), seeds[chunk], bounds,
+                                        config, devices, chunk_size, settings)
+        share = (time.perf_counter() - tic) / len(chunk)
+        for lane, index in enumerate(chunk):
+            results[index] = _sample_result(
+                samples[index], _lane(searched, lane), _lane(polished, lane),
+                options["population_size"], share, options["max_steps"], bounds, model,
+                problems[index].scene)
+    return results
+
+
+def _geometry_key(data: Measurements) -> bytes:
+    """A digest equal for measurement sets with identical angle arrays."""
+    digest = hashlib.sha256()
+    for angles in (data.theta_i, data.theta_r, data.phi_r):
+        digest.update(np.ascontiguousarray(angles, dtype=float).tobytes() + b"|")
+    return digest.digest()
+
+
+def _lane(batched, lane: int):
+    """One sample's slice of a batched result (a pytree with leading sample axis)."""
+    return jax.tree.map(lambda x: x[lane], batched)
+
+
+def _failed(data: Measurements, message: str, bounds: Bounds, model: Model) -> FitResult:
+    """The result of a sample that could not be fitted: NaN parameters and the reason."""
+    nothing = np.zeros(0)
+    return FitResult(params=model.Params(*[np.nan] * model.size), error=np.nan,
+                     error_by_incidence={},
+                     validation_error=None, validation_by_incidence={}, residuals=nothing,
+                     status="failed", at_bounds=[], evaluations=0,
+                     lm_steps=nothing.astype(int), lm_success=nothing.astype(bool),
+                     timings={}, history=nothing, method="hybrid", train_incidences=[],
+                     validation_incidences=[], bounds=bounds, model=model, message=message)
+
+
+def _sample_result(data, searched, polished, population_size, seconds, max_steps, bounds,
+                   model, geometry) -> FitResult:
+    """One sample's `FitResult` from its lane of the batched search and polish."""
+    history, evaluations = search_summary(searched, population_size)
+    best, status, lm_evaluations = polish_summary(polished)
+    message = {"max_steps": f"Levenberg-Marquardt stopped at its cap of {max_steps} steps "
+                            "before meeting its tolerance",
+               "failed": "no start reached a finite E"}.get(status, "")
+    empty = data.select(np.zeros(len(data), dtype=bool))
+    return fit_result(data, data, empty, best, bounds, model, geometry, method="hybrid",
+                      status=status, evaluations=evaluations + lm_evaluations,
+                      lm_steps=polished.steps, lm_success=polished.success,
+                      timings={"total": seconds}, history=history, message=message)
+
+
+def _run_chunk(problems: list[Problem], seeds, bounds, config, devices, chunk_size, settings):
+    """Pad one chunk, fit a block of it on every device at once; host arrays of the samples."""
+    count = len(problems)
+    # A device per SAMPLES_PER_DEVICE samples at most: XLA compiles a shape once per device,
+    # and a small chunk (a cross-validation's folds, a few files) gains less from a second
+    # device than that compilation (or its load from the cache) costs.
+    devices = devices[:max(1, count // SAMPLES_PER_DEVICE)]
+    lanes = min(chunk_size, 1 << (count - 1).bit_length())
+    lanes = -(-max(lanes, count) // len(devices)) * len(devices)
+    points = max(p.target.size for p in problems)  # each already a multiple of POINT_BUCKET
+    chosen = list(range(count)) + [0] * (lanes - count)
+    shared = all(p.scene is problems[0].scene for p in problems)
+    targets = np.stack([pad(problems[i].target, points, 0.0) for i in chosen])
+    weights = np.stack([pad(problems[i].weight, points, 0.0) for i in chosen])
+    model = problems[0].model
+    if shared:
+        scene = padded_scene(problems[0].scene, points)
+    else:
+        scene = jax.tree.map(lambda *fields: np.stack(fields),
+                             *(padded_scene(problems[i].scene, points) for i in chosen))
+    config = EvolveConfig() if config is None else config
+    block = lanes // len(devices)
+    per_sample = (np.asarray(seeds)[chosen], targets, weights, None if shared else scene)
+
+    def dispatch(number: int):
+        device = devices[number]
+        part = jax.tree.map(partial(_block, number=number, size=block), per_sample)
+        seeds_, target, weight, scene_ = jax.device_put(part, device)
+        return _fit_chunk(seeds_, jax.device_put(scene, device) if shared else scene_,
+                          target, weight, *jax.device_put((bounds, config), device),
+                          model, **settings)
+
+    # Dispatched to every device before any result is awaited. From threads: XLA compiles
+    # a new shape once per device, and so compiles for all devices at once (2 devices:
+    # 29 s + 23 s one after the other on a loaded 2-core machine).
+    if len(devices) == 1:
+        running = [dispatch(0)]
+    else:
+        with ThreadPoolExecutor(len(devices)) as pool:
+            running = list(pool.map(dispatch, range(len(devices))))
+    return jax.tree.map(lambda *blocks: np.concatenate(blocks)[:count], *running)
+
+
+def _block(values, number: int, size: int):
+    """The ``number``-th block of ``size`` samples of an array with a leading sample axis."""
+    return values[number * size:(number + 1) * size]
+
+
+@stage(static_argnames=("population_size", "max_generations", "starts", "max_steps",
+                        "search_batch", "polish_batch"))
+def _fit_chunk(seeds, scene, target, weight, bounds: Bounds, config: EvolveConfig,
+               model: Model, *, population_size: int, max_generations: int, starts: int,
+               max_steps: int,
+               search_batch: int | None,
+               polish_batch: int | None) -> tuple[EvolveResult, PolishResult]:
+    """The hybrid fit of a padded chunk in one compiled call.
+
+    Args:
+        seeds: one integer seed per sample, (B,).
+        scene: one geometry (N,) shared by every sample, or one per sample (B, N).
+        target, weight: the `Problem` arrays of each sample, (B, N); weight 0 on padding.
+        bounds, config: the search box and the genetic-search rates.
+        model: the `brdfjax.models.Model` fitted (static).
+        population_size, max_generations, starts, max_steps: as in `fit`.
+        search_batch, polish_batch: samples run side by side in each stage (see
+            `across_samples`).
+
+    Returns:
+        The batched `EvolveResult` and `PolishResult`, leading axis B.
+    """
+
+    if model.searched_size == 0:  # a linear model (Ross-Li, Lambert): one exact solve
+        return across_samples(lambda scene, target, weight: solved_fit(
+            Problem(scene, target, weight, model), bounds, max_generations), scene,
+            (target, weight), None)
+
+    def search(scene, seed, target, weight):
+        return evolve(jax.random.key(seed), Problem(scene, target, weight, model), bounds, config,
+                      population_size=population_size, max_generations=max_generations)
+
+    def refine(scene, population, target, weight):
+        return polish_population(population, Problem(scene, target, weight, model), bounds,
+                                 starts=starts, max_steps=max_steps)
+
+    searched = across_samples(search, scene, (seeds, target, weight), search_batch)
+    polished = across_samples(refine, scene, (searched.population, target, weight),
+                              polish_batch)
+    return searched, polished
+
+
+def across_samples(function, scene, arrays: tuple, batch: int | None):
+    """``function(scene, *arrays[i])`` for every sample i, ``batch`` samples side by side.
+
+    ``batch`` samples run together under ``vmap``, such groups one after another under
+    ``lax.map``; ``None`` vmaps them all at once. Under ``vmap`` a loop runs as long as its
+    slowest lane, so on a CPU small groups can be faster (``BENCHMARKS.md``).
+
+    Args:
+        function: ``(scene, *per-sample arrays) -> pytree`` for one sample.
+        scene: a geometry shared by all samples (arrays (N,)) or one per sample ((B, N)).
+        arrays: per-sample arrays, leading axis B.
+        batch: samples per vmapped group, or None for all.
+
+    Returns:
+        The stacked outputs, leading axis B.
+    """
+    shared = scene.cos_theta_r.ndim == 1
+    if batch is None:
+        return jax.vmap(function, in_axes=(None if shared else 0,) + (0,) * len(arrays))(
+            scene, *arrays)
+    mapped = arrays if shared else (scene, *arrays)
+
+    def one(item):
+        return function(scene, *item) if shared else function(*item)
+
+    # batch_size=1 would still vmap each sample (over an axis of one), which costs more
+    return jax.lax.map(one, mapped, batch_size=None if batch == 1 else batch)
+
+
+def use_every_core() -> list:
+    """The devices to fit on: on a CPU, one single-threaded device per core.
+
+    XLA alone keeps about one core busy on this work (its small operations gain little from
+    threads), while one device per core, each running its own block of samples on one
+    thread, keeps every core busy without the threads contending (``BENCHMARKS.md``,
+    section batch). Must run before JAX starts its backend to take effect; a device count
+    given in ``XLA_FLAGS`` (``--xla_force_host_platform_device_count``) is kept, and so are
+    the devices of a JAX that has already started.
+    """
+    flags = os.environ.get("XLA_FLAGS", "")
+    if "xla_cpu_multi_thread_eigen" not in flags:
+        os.environ["XLA_FLAGS"] = f"{flags} --xla_cpu_multi_thread_eigen=false".strip()
+    if "xla_force_host_platform_device_count" not in flags:
+        try:
+            jax.config.update("jax_num_cpu_devices", len(os.sched_getaffinity(0)))
+        except RuntimeError:  # JAX already running in this process: keep its devices
+            pass
+    return jax.devices()

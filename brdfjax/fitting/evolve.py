@@ -1,0 +1,215 @@
+"""Global search: a real-coded genetic algorithm in JAX, the whole run one compiled loop.
+
+The paper fits its five parameters with a genetic algorithm; this one searches the unit
+cube of `brdfjax.fitting.bounds` (log10 for the positive parameters, asinh for b) so that the
+degenerate basins of real data are reachable. Only the parameters that enter f_r
+nonlinearly matter to the search ((kr, a, b) of the five-parameter model, alpha of GGX):
+every member gets the best linear ones (kb and kd) exactly (variable projection,
+`brdfjax.fitting.objective.solve_linear`), and the search space shrinks from five dimensions to
+three (to one for GGX). Each generation:
+
+1. the population is scored with one ``vmap`` of Eq. (6), the linear parameters solved
+   (NaN counts as +inf);
+2. the ``elite_count`` best members pass unchanged (elitism);
+3. parents are drawn by tournament (the best of ``tournament_size`` random members);
+4. children are blends ``p1 + beta (p2 - p1)`` with ``beta ~ U(-0.5, 1.5)`` per gene
+   (BLX-0.5 crossover), then each gene mutates with probability ``mutation_rate`` by a
+   normal step of ``mutation_scale``, and is clipped to the box.
+
+The islands evolve side by side in one loop (``lax.while_loop``), their members scored
+together; it stops after ``max_generations`` or when no island's best error has improved
+by a relative ``tolerance`` for ``patience`` generations. Sizes are static; rates, bounds
+and data are traced, so sweeping them never recompiles.
+
+A model that leaves at most one parameter to search (GGX and Beckmann search alpha only,
+Lambert nothing) needs no genetic algorithm: `scan` scores ``population_size`` evenly
+spaced values of that parameter once, and its best local minima become the polish starts.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from brdfjax.cache import stage
+from brdfjax.fitting.bounds import Bounds, from_unit, to_unit
+from brdfjax.fitting.objective import Problem, solve_linear
+
+BLEND_EXTENT = 0.5  # BLX-alpha with alpha = 0.5: children may land beyond either parent
+
+
+class EvolveConfig(NamedTuple):
+    """Rates of the genetic algorithm (traced: changing them does not recompile)."""
+
+    mutation_rate: float = 0.2
+    mutation_scale: float = 0.05
+    crossover_rate: float = 0.9
+    tolerance: float = 1e-6
+
+
+class EvolveResult(NamedTuple):
+    """The final population and how the run went.
+
+    Attributes:
+        population: unit-cube coordinates, (population_size, P) (see `evolve` for order).
+        errors: E of each member, (population_size,).
+        history: best E after each generation, (max_generations,), NaN after the stop.
+        generations: generations run.
+    """
+
+    population: jax.Array
+    errors: jax.Array
+    history: jax.Array
+    generations: jax.Array
+
+
+def score_population(z, prob: Problem, bounds: Bounds) -> tuple[jax.Array, jax.Array]:
+    """Score a unit-cube population (N, P), solving each member's linear parameters exactly.
+
+    `brdfjax.fitting.objective.solve_linear` gives the best linear parameters within the bounds
+    (kb and kd of the five-parameter model). They replace the members' genes, so the
+    returned population is consistent with its errors.
+
+    Returns:
+        The updated population and the E of each member (NaN becomes +inf).
+    """
+
+    def one(member):
+        params, value = solve_linear(from_unit(member, bounds), prob, bounds)
+        solved = to_unit(params, bounds)
+        return jnp.where(jnp.isfinite(solved), solved, member), value
+
+    z, values = jax.vmap(one)(z)
+    return z, jnp.where(jnp.isnan(values), jnp.inf, values)
+
+
+@stage(static_argnames=("population_size", "islands", "max_generations", "elite_count",
+                        "tournament_size", "patience", "precision"))
+def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = None, *,
+           population_size: int = 128, islands: int = 8, max_generations: int = 40,
+           elite_count: int = 4, tournament_size: int = 3, patience: int = 15,
+           precision: str = "float32") -> EvolveResult:
+    """Run the genetic algorithm on one problem, as ``islands`` independent populations.
+
+    Real data have several basins (the RT-300S black coatings: the kb-b valley and others): one
+    population converges into whichever it finds first, independent islands into several,
+    and `brdfjax.fitting.polish.polish_population` polishes the best of each. The search runs in
+    ``precision`` (float32 evaluates a population about twice as fast; it only has to find
+    the basin, Levenberg-Marquardt polishes in the problem's float64).
+
+    Args:
+        key: a JAX PRNG key (new or legacy), or an integer seed; the same key gives the
+            same run.
+        prob: the measurement set (`brdfjax.fitting.objective.problem`).
+        bounds: the search box.
+        config: the rates (`EvolveConfig` defaults if None).
+        population_size: members in all islands together (a multiple of ``islands``).
+        islands, max_generations, elite_count (per island), tournament_size, patience: sizes.
+        precision: dtype name of the search arithmetic.
+
+    Returns:
+        An `EvolveResult` whose population is in island blocks of
+        ``population_size // islands`` rows, each block sorted best first and the blocks
+        ordered by their best (row 0 is the best member), returned in the problem's dtype.
+    """
+    if population_size % islands:
+        raise ValueError(f"population_size {population_size} is not a multiple of "
+                         f"islands {islands}")
+    config = EvolveConfig() if config is None else config
+    if jnp.ndim(key) == 0 and jnp.issubdtype(jnp.result_type(key), jnp.integer):
+        key = jax.random.key(key)
+    elif not jax.dtypes.issubdtype(jnp.result_type(key), jax.dtypes.prng_key):
+        key = jax.random.wrap_key_data(key)  # a legacy uint32 key of jax.random.PRNGKey
+    out, dtype = prob.target.dtype, jnp.dtype(precision)
+    prob, bounds = jax.tree.map(
+        lambda x: x.astype(dtype) if jnp.issubdtype(x.dtype, jnp.floating) else x,
+        (prob, bounds))
+    if prob.model.searched_size <= 1:
+        return scan(prob, bounds, population_size, islands, max_generations, out)
+    config = jax.tree.map(lambda x: jnp.asarray(x, dtype), config)
+    size = population_size // islands
+    dimensions = prob.model.size
+
+    def score(z):
+        """Score every member of every island: one flat vmap, the fastest layout on CPU."""
+        scored, errors = score_population(z.reshape(-1, dimensions), prob, bounds)
+        return scored.reshape(z.shape), errors.reshape(z.shape[:-1])
+
+    def sort(z, errors):
+        order = jnp.argsort(errors, axis=-1)
+        return (jnp.take_along_axis(z, order[..., None], axis=1),
+                jnp.take_along_axis(errors, order, axis=-1))
+
+    def breed(key, z):
+        """Children of one island (sorted best first): tournament, BLX blend, mutation."""
+        k_tour, k_blend, k_cross, k_mut, k_step = jax.random.split(key, 5)
+        children = size - elite_count
+        entrants = jax.random.randint(k_tour, (2, children, tournament_size), 0, size)
+        winners = jnp.min(entrants, axis=-1)  # sorted best first: the lowest index wins
+        first, second = z[winners[0]], z[winners[1]]
+        beta = jax.random.uniform(k_blend, first.shape, minval=-BLEND_EXTENT,
+                                  maxval=1 + BLEND_EXTENT, dtype=dtype)
+        crossed = jax.random.uniform(k_cross, (children, 1), dtype=dtype) < config.crossover_rate
+        child = jnp.where(crossed, first + beta * (second - first), first)
+        mutate = jax.random.uniform(k_mut, child.shape, dtype=dtype) < config.mutation_rate
+        step = config.mutation_scale * jax.random.normal(k_step, child.shape, dtype=dtype)
+        return jnp.clip(jnp.where(mutate, child + step, child), 0.0, 1.0)
+
+    def condition(state):
+        generation, _, _, _, _, stalled, _ = state
+        return (generation < max_generations) & jnp.any(stalled < patience)
+
+    def step(state):
+        generation, key, z, errors, history, stalled, best = state
+        key, sub = jax.random.split(key)
+        children = jax.vmap(breed)(jax.random.split(sub, islands), z)
+        children, child_errors = score(children)
+        z, errors = sort(jnp.concatenate([z[:, :elite_count], children], axis=1),
+                         jnp.concatenate([errors[:, :elite_count], child_errors], axis=1))
+        improved = errors[:, 0] < best * (1 - config.tolerance)
+        stalled = jnp.where(improved, 0, stalled + 1)
+        history = history.at[generation].set(errors[:, 0].min())
+        return generation + 1, key, z, errors, history, stalled, jnp.minimum(best, errors[:, 0])
+
+    init_key, loop_key = jax.random.split(key)
+    z = jax.random.uniform(init_key, (islands, size, dimensions), dtype=dtype)
+    z, errors = sort(*score(z))
+    state = (jnp.asarray(0), loop_key, z, errors, jnp.full(max_generations, jnp.nan, dtype),
+             jnp.zeros(islands, dtype=int), errors[:, 0])
+    generations, _, z, errors, history, _, _ = jax.lax.while_loop(condition, step, state)
+    order = jnp.argsort(errors[:, 0])  # islands best first: member 0 is the best of all
+    z, errors = z[order], errors[order]
+    return EvolveResult(population=z.reshape(-1, dimensions).astype(out),
+                        errors=errors.reshape(-1).astype(out), history=history.astype(out),
+                        generations=generations)
+
+
+def scan(prob: Problem, bounds: Bounds, points: int, islands: int, max_generations: int,
+         out) -> EvolveResult:
+    """The search of a model with at most one parameter to search: a grid, scored once.
+
+    Every gene of member k is ``(k + 1/2) / points``: the linear solve overwrites all genes
+    but the searched one, which thus takes ``points`` evenly spaced values across its range
+    (a 3-decade log10 range in steps of 5.5 % for 128 points). The grid's local minima,
+    best first, give one island each (the best ``islands``; where there are fewer, the
+    remaining islands repeat the best member), so that `brdfjax.fitting.polish.polish_population`
+    starts once from each minimum: it skips repeated starts.
+
+    Returns:
+        An `EvolveResult` laid out as `evolve`'s (island blocks, each one member repeated)
+        with ``generations`` 0 and an all-NaN history: no generation was bred.
+    """
+    grid = (jnp.arange(points, dtype=prob.target.dtype) + 0.5) / points
+    z, errors = score_population(jnp.broadcast_to(grid[:, None], (points, prob.model.size)),
+                                 prob, bounds)
+    padded = jnp.pad(errors, 1, constant_values=jnp.inf)
+    minimum = (errors <= padded[:-2]) & (errors <= padded[2:]) & jnp.isfinite(errors)
+    order = jnp.argsort(jnp.where(minimum, errors, jnp.inf))[:islands]
+    order = jnp.where(minimum[order], order, order[0])  # too few minima: repeat the best
+    block = points // islands
+    return EvolveResult(population=jnp.repeat(z[order], block, axis=0).astype(out),
+                        errors=jnp.repeat(errors[order], block).astype(out),
+                        history=jnp.full(max_generations, jnp.nan, out),
+                        generations=jnp.asarray(0))

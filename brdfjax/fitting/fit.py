@@ -1,0 +1,364 @@
+"""Fitting a measurement set: genetic search, Levenberg-Marquardt polish, and the result.
+
+`fit` is the one entry point, for every model of `brdfjax.models` (the five-parameter
+model by default). The default ``hybrid`` method runs `brdfjax.fitting.evolve.evolve` to find the
+basin, then `brdfjax.fitting.polish.polish` from ``starts`` distinct good members (and the model's
+own extra starts: the five-parameter model's Fresnel-free one) at once, and keeps the best.
+Dense scans (more than `DENSE_POINTS` points) are searched and screened on representative
+points, and only the winner is polished on all of them. ``ga`` stops after the
+genetic search; ``lm`` polishes from given parameters, or from random points of the box.
+Incidence angles can be held out for validation, as the paper does (fit 10/30/45/60 deg,
+validate 21/52 deg).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from brdfjax.cache import stage
+from brdfjax.data.measurements import DataError, Measurements, incidence_groups
+from brdfjax.fitting.bounds import Bounds, default_bounds, from_unit, to_free, to_unit
+from brdfjax.fitting.evolve import EvolveConfig, EvolveResult, evolve
+from brdfjax.fitting.objective import (
+    Problem,
+    prepare,
+    problem,
+    projected,
+    relative_error,
+    targets,
+    with_loss,
+)
+from brdfjax.fitting.polish import PolishResult, polish, polish_population
+from brdfjax.models import Model, get
+from brdfjax.models.paper import FIVE
+
+METHODS = ("hybrid", "ga", "lm")
+# Dense scans: above DENSE_POINTS training points the hybrid fit searches and screens on
+# SEARCH_POINTS representative points (`representative`) and polishes only the winner on
+# every point. The basin is found long before all points are needed: a 1 deg x 2 deg scan
+# of 100 000 points repeats the same shape hundreds of times.
+DENSE_POINTS = 16384
+SEARCH_POINTS = 4096
+
+
+@dataclass
+class FitResult:
+    """The outcome of `fit`.
+
+    Attributes:
+        params: the fitted parameters by name (the model's ``Params`` named tuple).
+        error: E of Eq. (6) on the training points, as a fraction.
+        error_by_incidence: E on each training incidence alone, keyed by degrees.
+        validation_error: E on the held-out incidences together (None if none held out).
+        validation_by_incidence: E on each held-out incidence alone.
+        residuals: the training residual vector (its squared norm is ``error``).
+        status: ``converged``, ``max_steps`` (LM hit its step cap), ``failed`` (no finite
+            result), or ``search_only`` (the ``ga`` method does not polish).
+        at_bounds: names of parameters within 1e-6 of a bound (in unit-cube terms).
+        evaluations: model evaluations of the whole data set (a Jacobian counts one per
+            parameter).
+        lm_steps: LM steps of each start; lm_success: each start's optimistix status.
+        timings: wall seconds per stage (``evolve``, ``polish``, ``total``).
+        history: the genetic search's best E after each generation.
+        method: the method used; train_incidences, validation_incidences: in degrees.
+        message: why the status, where there is more to say (a batch sample's data error).
+        model: the `brdfjax.models.Model` fitted.
+        training: the measurements fitted (for cross-validation and predictions), with the
+            weights of the loss.
+        loss: what the fit minimised (`brdfjax.fitting.objective.with_loss`).
+    """
+
+    params: tuple
+    error: float
+    error_by_incidence: dict
+    validation_error: float | None
+    validation_by_incidence: dict
+    residuals: np.ndarray
+    status: str
+    at_bounds: list
+    evaluations: int
+    lm_steps: np.ndarray
+    lm_success: np.ndarray
+    timings: dict
+    history: np.ndarray
+    method: str
+    train_incidences: list
+    validation_incidences: list
+    bounds: Bounds = field(repr=False)
+    model: Model = field(default=FIVE)
+    message: str = ""
+    training: Measurements | None = field(default=None, repr=False)
+    loss: str = "eq6"
+
+    @property
+    def vector(self) -> np.ndarray:
+        """The parameters as an array, in the model's order (kb, kr, a, b, kd by default)."""
+        return np.array(self.params, dtype=float)
+
+    def to_dict(self) -> dict:
+        """A JSON-ready summary (E as a fraction, incidences as string keys)."""
+        return {
+            "model": self.model.name,
+            "loss": self.loss,
+            "params": dict(zip(self.model.names, map(float, self.params))),
+            "error": self.error,
+            "error_by_incidence": {f"{k:g}": v for k, v in self.error_by_incidence.items()},
+            "validation_error": self.validation_error,
+            "validation_by_incidence": {f"{k:g}": v
+                                        for k, v in self.validation_by_incidence.items()},
+            "status": self.status,
+            "at_bounds": self.at_bounds,
+            "method": self.method,
+            "evaluations": self.evaluations,
+            "lm_steps": [int(s) for s in self.lm_steps],
+            "timings": self.timings,
+            "message": self.message,
+        }
+
+
+def split(data: Measurements, validate_incidences_deg=None) -> tuple[Measurements, Measurements]:
+    """Training and held-out subsets by incidence angle (degrees)."""
+    if not validate_incidences_deg:
+        return data, data.select(np.zeros(len(data), dtype=bool))
+    mask = data.incidence_mask(validate_incidences_deg)
+    train, held = data.select(~mask), data.select(mask)
+    missing = set(np.round(validate_incidences_deg, 6)) - set(held.incidences_deg)
+    if missing:
+        raise DataError(f"held-out incidence(s) {_degrees(sorted(missing))} deg not in the data",
+                        data.metadata.get("source"),
+                        hint=f"the data have {_degrees(data.incidences_deg)} deg")
+    if len(train.incidences_deg) == 0:
+        raise DataError("nothing left to fit after holding out "
+                        f"{_degrees(validate_incidences_deg)} deg", data.metadata.get("source"),
+                        hint="held-out validation needs at least two incidence angles")
+    return train, held
+
+
+def _degrees(values) -> str:
+    return ", ".join(f"{float(x):g}" for x in values)
+
+
+def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None = None,
+        seed: int = 0, validate_incidences_deg=None, bounds: Bounds | None = None, start=None,
+        starts: int = 16, population_size: int = 128, max_generations: int = 40,
+        max_steps: int = 1000, config: EvolveConfig | None = None,
+        constants=None, loss: str = "eq6") -> FitResult:
+    """Fit a model (the five-parameter model by default) by minimising E of Eq. (6).
+
+    Args:
+        data: the measurements.
+        method: ``hybrid`` (genetic search then LM), ``ga`` or ``lm``.
+        model: a name of `brdfjax.models.available` or a `brdfjax.models.Model`.
+        seed: seeds every random choice; the same seed gives the same result.
+        validate_incidences_deg: incidence angles (deg) held out of the fit and scored after.
+        bounds: the search box (the model's `brdfjax.fitting.bounds.default_bounds` if None).
+        start: for ``lm``, starting parameters (P,) or (S, P); random starts if None.
+        starts: how many distinct GA members LM polishes (besides the model's extra
+            starts), or how many random starts for ``lm``.
+        population_size, max_generations: genetic-search sizes.
+        max_steps: LM step cap per start.
+        config: genetic-search rates (defaults if None).
+        constants: the shadowing constants of Eq. (3), for models with a G term (the
+            paper's if None).
+        loss: ``eq6`` (E of Eq. 6, the default), ``relative`` or ``balanced``
+            (`brdfjax.fitting.objective.with_loss`); E is then reported under that loss.
+
+    Returns:
+        A `FitResult`.
+    """
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; choose one of {METHODS}")
+    model = get(model, constants)
+    bounds = default_bounds(model) if bounds is None else bounds
+    check_bounds(bounds, model)
+    train, held = split(with_loss(data, loss), validate_incidences_deg)
+    prob = problem(train, model)
+    timings, history, evaluations = {}, np.zeros(0), 0
+    method_ran = method
+    begin = time.perf_counter()
+    search = prob
+    if method == "hybrid" and len(train) > DENSE_POINTS:
+        search = problem(representative(train, SEARCH_POINTS), model)
+
+    if method != "lm" and model.searched_size == 0:
+        # Nothing to search (Ross-Li, Lambert): E is a convex quadratic of the linear
+        # coefficients over their box, and the exact solve is the fit; LM adds nothing.
+        tic = time.perf_counter()
+        searched, polished = _solved_fit(prob, bounds, max_generations=max_generations)
+        polished.errors.block_until_ready()
+        timings["solve"] = time.perf_counter() - tic
+        best, status, evaluations = polish_summary(polished)
+        steps, success = np.asarray(polished.steps), np.asarray(polished.success)
+        method_ran = "solve"
+    elif method != "lm":
+        tic = time.perf_counter()
+        searched = evolve(seed, search, bounds, config, population_size=population_size,
+                          max_generations=max_generations)
+        searched.errors.block_until_ready()
+        timings["evolve"] = time.perf_counter() - tic
+        history, evaluations = search_summary(searched, population_size)
+
+    if method_ran == "solve":
+        pass
+    elif method == "ga":
+        best = from_unit(np.asarray(searched.population)[np.argmin(searched.errors)], bounds)
+        status, steps, success = "search_only", np.zeros(0, int), np.zeros(0, bool)
+    else:
+        tic = time.perf_counter()
+        if method == "hybrid":
+            polished = polish_population(searched.population, search, bounds, starts=starts,
+                                         max_steps=max_steps)
+            if search is not prob:  # the winner of the representative points, on every point
+                winner, _, screened = polish_summary(polished)
+                evaluations += screened * search.target.size // prob.target.size
+                polished = polish(to_free(winner[None], bounds), prob, bounds,
+                                  max_steps=max_steps)
+        else:
+            polished = polish(_lm_starts(start, starts, seed, bounds), prob, bounds,
+                              max_steps=max_steps)
+        polished.errors.block_until_ready()
+        timings["polish"] = time.perf_counter() - tic
+        best, status, lm_evaluations = polish_summary(polished)
+        steps, success = np.asarray(polished.steps), np.asarray(polished.success)
+        evaluations += lm_evaluations
+    timings["total"] = time.perf_counter() - begin
+    return fit_result(with_loss(data, loss), train, held, np.asarray(best, dtype=float),
+                      bounds, model, loss=loss,
+                      geometry=None if len(held) else prob.scene, method=method,
+                      status=status, evaluations=evaluations, lm_steps=steps,
+                      lm_success=success, timings=timings, history=history)
+
+
+def solved_fit(prob: Problem, bounds: Bounds, max_generations: int = 40):
+    """The fit of a model with nothing to search: one exact linear solve
+    (`brdfjax.fitting.objective.solve_linear`), laid out as a search and a one-start polish.
+
+    Returns:
+        (`brdfjax.fitting.evolve.EvolveResult` of the one solved member, no generation bred;
+        `brdfjax.fitting.polish.PolishResult` of it, 0 LM steps, successful where E is finite).
+    """
+    import jax.numpy as jnp
+
+    from brdfjax.fitting.bounds import to_free as free_of
+    from brdfjax.fitting.evolve import EvolveResult
+    from brdfjax.fitting.objective import solve_linear
+
+    dtype = prob.target.dtype
+    bounds = Bounds(*(jnp.asarray(b, dtype) if k < 2 else jnp.asarray(b)
+                      for k, b in enumerate(bounds)))
+    params, value = solve_linear(from_unit(jnp.full(prob.model.size, 0.5, dtype), bounds),
+                                 prob, bounds)
+    value = jnp.where(jnp.isnan(value), jnp.inf, value)
+    unit = to_unit(params, bounds)
+    searched = EvolveResult(unit[None], value[None],
+                            jnp.full(max_generations, jnp.nan, dtype), jnp.asarray(0))
+    polished = PolishResult(free_of(params, bounds)[None], params[None], value[None],
+                            jnp.isfinite(value)[None], jnp.zeros(1, jnp.result_type(int)),
+                            jnp.asarray(1, jnp.result_type(int)))
+    return searched, polished
+
+
+_solved_fit = stage(solved_fit, static_argnames=("max_generations",))
+
+
+def representative(data: Measurements, count: int) -> Measurements:
+    """About ``count`` points of ``data`` that keep its shape, for searching dense scans.
+
+    Every incidence (or incidence bin, `brdfjax.prediction.cross_validation.incidence_groups`) keeps
+    its share of the points. Within one, a tenth of its share goes to its brightest points, so
+    that narrow peaks stay represented, and the rest are spread evenly over its points
+    ordered by (theta_r, phi_r), so that every angle is.
+    """
+    keep = np.zeros(len(data), dtype=bool)
+    for *_, mask in incidence_groups(data):
+        index = np.flatnonzero(mask)
+        share = max(1, round(count * index.size / len(data)))
+        brightest = index[np.argsort(-np.abs(data.brdf[index]))[:max(1, share // 10)]]
+        ordered = index[np.lexsort((data.phi_r[index], data.theta_r[index]))]
+        spread = ordered[np.linspace(0, index.size - 1, share - brightest.size).astype(int)]
+        keep[brightest] = keep[spread] = True
+    return data.select(keep)
+
+
+def search_summary(searched: EvolveResult, population_size: int) -> tuple[np.ndarray, int]:
+    """The genetic search's best-E history and its count of model evaluations.
+
+    Args:
+        searched: one run of `brdfjax.fitting.evolve.evolve` (host or device arrays).
+        population_size: its population size.
+
+    Returns:
+        The history up to the last generation run, and the evaluations it took.
+    """
+    generations = int(searched.generations)
+    return np.asarray(searched.history)[:generations], population_size * (generations + 1)
+
+
+def polish_summary(polished: PolishResult) -> tuple[np.ndarray, str, int]:
+    """The best polished start, the fit's status, and LM's count of model evaluations.
+
+    Args:
+        polished: the surviving starts of one `brdfjax.fitting.polish.polish` (host or device).
+
+    Returns:
+        The parameters (P,) of the start with the lowest E; ``converged``, ``max_steps``
+        or ``failed`` (no start reached a finite E); and the evaluations taken.
+    """
+    errors = np.asarray(polished.errors)
+    pick = int(np.argmin(errors))
+    status = ("failed" if not np.isfinite(errors[pick]) else
+              "converged" if np.asarray(polished.success)[pick] else "max_steps")
+    return np.asarray(polished.params, dtype=float)[pick], status, int(polished.evaluations)
+
+
+def _lm_starts(start, count, seed, bounds):
+    """Unconstrained LM starts: the given parameters, or ``count`` random points of the box."""
+    if start is None:
+        unit = np.random.default_rng(seed).uniform(size=(count, bounds.lower.size))
+        return to_free(from_unit(unit, bounds), bounds)
+    return to_free(np.atleast_2d(np.asarray(start, dtype=float)), bounds)
+
+
+def check_bounds(bounds: Bounds, model: Model) -> None:
+    """A clear error when ``bounds`` were made for another model (another parameter count)."""
+    if np.shape(bounds.lower) != (model.size,):
+        raise ValueError(f"the bounds have {np.size(bounds.lower)} parameters, the {model.name} "
+                         f"model {model.size} ({', '.join(model.names)}); make them with "
+                         f"brdfjax.make_bounds(..., model={model.name!r})")
+
+
+def fit_result(data, train, held, vector, bounds, model, geometry=None,
+               **details) -> FitResult:
+    """A `FitResult` for ``vector``: E overall, per incidence and held out, from one model
+    evaluation of ``data`` (split into ``train`` and ``held``; ``geometry`` is the model's
+    geometry of ``data``, padded or not, where already computed); ``details`` fill the rest
+    (status, timings, ...).
+    `brdfjax.fitting.batch` builds each sample's result with it too."""
+    geometry = prepare(data, model) if geometry is None else geometry
+    vector = np.asarray(model.canonical(vector, bounds), dtype=float)  # a sum's lobes ordered
+    fitted = np.asarray(projected(vector, geometry, model))[:len(data)]  # padded geometry
+    target, weight = targets(data)
+    is_held = data.incidence_mask(held.incidences_deg)
+    theta = np.round(np.degrees(data.theta_i), 6)
+
+    def error_on(mask):
+        return relative_error(fitted[mask], target[mask], weight[mask])
+
+    unit = np.asarray(to_unit(vector, bounds))
+    normalised = weight[~is_held] / np.sum(weight[~is_held] * target[~is_held] ** 2)
+    return FitResult(
+        params=model.Params(*map(float, vector)),
+        error=error_on(~is_held),
+        error_by_incidence={float(d): error_on(theta == d) for d in train.incidences_deg},
+        validation_error=error_on(is_held) if is_held.any() else None,
+        validation_by_incidence={float(d): error_on(theta == d) for d in held.incidences_deg},
+        residuals=np.sqrt(normalised) * (fitted[~is_held] - target[~is_held]),
+        at_bounds=[n for n, z in zip(model.names, unit) if z < 1e-6 or z > 1 - 1e-6],
+        train_incidences=[float(x) for x in train.incidences_deg],
+        validation_incidences=[float(x) for x in held.incidences_deg],
+        bounds=bounds, model=model, training=train, **details)
+
+

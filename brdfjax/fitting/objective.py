@@ -1,0 +1,481 @@
+"""What the fit minimises: the relative squared error of Eq. (6) and its residual vector.
+
+    E(x) = sum g (f_r cos tr - f_r0 cos tr)^2 / sum g (f_r0 cos tr)^2
+
+over the measurement points, with ``g = g1(ti) g2(tr)`` the paper's weights (1 in the paper;
+here the data's per-point ``weights`` when given). A `Problem` holds the scene and the
+measured projected BRDF with the weights already normalised by the denominator, so that
+``E = sum(weight * (model - target)^2)`` and the least-squares residual is
+``sqrt(weight) * (model - target)``. All arrays are traced: refitting same-shaped data with
+other values never recompiles.
+"""
+
+from __future__ import annotations
+
+import itertools
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from brdfjax.cache import stage
+from brdfjax.data.measurements import Measurements
+from brdfjax.fitting.bounds import Bounds
+from brdfjax.models import Model
+from brdfjax.models.paper import FIVE, evaluate, evaluate_projected
+
+
+class Problem(NamedTuple):
+    """A measurement set ready for the objective (a pytree of arrays of shape (N,)).
+
+    Attributes:
+        scene: the model's parameter-free geometry terms (`brdfjax.models.Model.geometry`).
+        target: the measured projected BRDF f_r0 cos(tr).
+        weight: g / sum(g target^2); zero for padding points.
+        model: the `brdfjax.models.Model` fitted (static: no leaves).
+    """
+
+    scene: NamedTuple
+    target: jax.Array
+    weight: jax.Array
+    model: Model = FIVE
+
+
+def _model_geometry(model, theta_i, theta_r, phi_r, in_plane):
+    return model.geometry(theta_i, theta_r, phi_r, in_plane)
+
+
+_geometry = stage(_model_geometry, static_argnames=("in_plane",))
+
+# Fitted point counts are padded up to a multiple of this with zero-weight copies of the
+# first point (a valid geometry, so every value stays finite; zero weight, so E is
+# unchanged). Data of nearby sizes then share compiled code, and a sample fitted alone
+# runs exactly the arithmetic it runs in a batch (`brdfjax.fitting.batch`).
+POINT_BUCKET = 64
+
+
+def bucket(count: int) -> int:
+    """``count`` rounded up to a multiple of `POINT_BUCKET`."""
+    return POINT_BUCKET * -(-count // POINT_BUCKET)
+
+
+def pad(values, length: int, fill=None) -> np.ndarray:
+    """``values`` (N,) extended to ``length`` with ``fill``, or with its first value."""
+    values = np.asarray(values)
+    extra = np.full(length - values.size, values[0] if fill is None else fill,
+                    dtype=values.dtype)
+    return np.concatenate([values, extra])
+
+
+def padded_scene(geometry: NamedTuple, length: int) -> NamedTuple:
+    """A geometry extended to ``length`` points with copies of its first point (every
+    array of it: a sum's geometry nests its parts')."""
+    return jax.tree.map(lambda x: pad(x, length), geometry)
+
+
+def prepare(data: Measurements, model: Model = FIVE, dtype=jnp.float64) -> NamedTuple:
+    """The model's geometry of a measurement set (one compiled call; in-plane data take the
+    fast path where the model has one)."""
+    angles = (np.asarray(x, dtype=dtype) for x in (data.theta_i, data.theta_r, data.phi_r))
+    return _geometry(model, *angles, in_plane=data.in_plane)
+
+
+def _projected(params, geometry, model):
+    return evaluate_projected(params, geometry, model)
+
+
+_projected_stage = stage(_projected)
+
+
+def projected(params, geometry, model: Model = FIVE) -> jax.Array:
+    """`brdfjax.models.paper.evaluate_projected` as one compiled stage (host calls)."""
+    return _projected_stage(params, geometry, model)
+
+
+def _brdf(params, geometry, model):
+    return evaluate(params, geometry, model)
+
+
+_brdf_stage = stage(_brdf)
+
+
+def brdf_values(params, geometry, model: Model = FIVE) -> jax.Array:
+    """`brdfjax.models.paper.evaluate` (f_r, 1/sr) as one compiled stage (host calls)."""
+    return _brdf_stage(params, geometry, model)
+
+
+def targets(data: Measurements) -> tuple[np.ndarray, np.ndarray]:
+    """The measured projected BRDF f_r0 cos(tr) and the weights g of Eq. (6) (host arrays)."""
+    target = data.brdf * np.cos(data.theta_r)
+    weight = np.ones_like(target) if data.weights is None else data.weights
+    return target, weight
+
+
+LOSSES = ("eq6", "relative", "balanced")
+# The relative loss's floor, as a fraction of the largest |f_r0 cos tr|: points near zero
+# are not weighted beyond 1 / floor^2.
+RELATIVE_FLOOR = 0.01
+
+
+def with_loss(data: Measurements, loss: str) -> Measurements:
+    """``data`` with the weights of Eq. (6) that make it minimise ``loss``.
+
+    ``eq6`` leaves the data as they are (the paper's weights 1, or the file's); ``relative``
+    weights each point by ``1 / (y^2 + floor^2)`` (y the projected measurement, floor
+    `RELATIVE_FLOOR` of the largest), so that E is the mean squared relative error;
+    ``balanced`` weights each incidence by ``1 / sum y^2`` over its points, so that every
+    incidence counts alike. Any weights of the file multiply these.
+    """
+    import dataclasses
+
+    if loss not in LOSSES:
+        raise ValueError(f"unknown loss {loss!r}; choose one of {', '.join(LOSSES)}")
+    if loss == "eq6":
+        return data
+    target = data.brdf * np.cos(data.theta_r)
+    if loss == "relative":
+        floor = RELATIVE_FLOOR * np.max(np.abs(target))
+        weight = 1.0 / (target**2 + floor**2)
+    else:
+        degrees = np.round(np.degrees(data.theta_i), 6)
+        totals = {d: np.sum(target[degrees == d] ** 2) for d in np.unique(degrees)}
+        weight = np.array([1.0 / totals[d] if totals[d] > 0 else 0.0 for d in degrees])
+    if data.weights is not None:
+        weight = weight * data.weights
+    return dataclasses.replace(data, weights=weight)
+
+
+def relative_error(model_projected, target, weight) -> float:
+    """E of Eq. (6) on host arrays (for reporting on any subset of points)."""
+    return float(np.sum(weight * (model_projected - target) ** 2) / np.sum(weight * target**2))
+
+
+def problem(data: Measurements, model: Model = FIVE, dtype=jnp.float64,
+            geometry: NamedTuple | None = None) -> Problem:
+    """The objective's view of a measurement set: geometry, target, normalised weights.
+
+    The arrays are padded to ``bucket(len(data))`` points of zero weight.
+
+    Args:
+        data: the measurements.
+        model: the `brdfjax.models.Model` to fit.
+        dtype: float64 for fitting; float32 halves the cost of a population evaluation.
+        geometry: the model's geometry of ``data`` if already computed, padded or not.
+    """
+    points = bucket(len(data))
+    geometry = prepare(data, model, dtype) if geometry is None else geometry
+    if geometry.cos_theta_r.shape[-1] != points:
+        geometry = padded_scene(geometry, points)
+    target, weight = targets(data)
+    denominator = np.sum(weight * target**2)
+    if not denominator > 0:
+        raise ValueError(f"{data.name}: every weighted measurement is zero; nothing to fit")
+    return Problem(geometry, jnp.asarray(pad(target, points, 0.0), dtype),
+                   jnp.asarray(pad(weight / denominator, points, 0.0), dtype), model)
+
+
+def residuals(params, prob: Problem) -> jax.Array:
+    """Residual vector whose squared norm is E of Eq. (6)."""
+    return jnp.sqrt(prob.weight) * (evaluate_projected(params, prob.scene, prob.model)
+                                    - prob.target)
+
+
+def error(params, prob: Problem) -> jax.Array:
+    """E of Eq. (6) as a fraction (the paper prints it in percent)."""
+    return jnp.sum(prob.weight * (evaluate_projected(params, prob.scene, prob.model)
+                                  - prob.target) ** 2)
+
+
+def solve_linear(params, prob: Problem, bounds: Bounds):
+    """The parameters that enter f_r linearly, at their best within the bounds, and E.
+
+    At fixed nonlinear parameters ``f_r cos(tr) = sum_k c_k s_k`` (the model's
+    `~brdfjax.models.Model.columns` times ``cos tr``), so E of Eq. (6) is a convex quadratic
+    in the coefficients c, minimised over their box exactly, without iterating
+    (`box_least_squares`: variable projection, Golub and Pereyra 1973). E follows from the
+    weighted sums of the column products, without a second pass over the points. Each
+    column is scaled to a maximum of 1, so that a huge ``exp(b ...)`` balanced by a tiny kb
+    (the five-parameter model on real black coatings) neither overflows nor loses
+    precision in float32.
+
+    Args:
+        params: a parameter vector (P,) whose nonlinear entries are used.
+        prob: the measurement set.
+        bounds: the search box.
+
+    Returns:
+        (the parameter vector with its linear entries solved, E).
+    """
+    model = prob.model
+    columns, units = model.columns(params, prob.scene, bounds)
+    c, t, w = prob.scene.cos_theta_r, prob.target, prob.weight
+    scaled, to_x = [], []
+    for column, unit in zip(columns, units):
+        s = column * c
+        peak = jnp.max(jnp.abs(s))
+        peak = jnp.where(peak > 0, peak, 1.0)
+        scaled.append(s / peak)  # the model is sum x_k s_k with x_k = c_k unit_k peak_k
+        to_x.append(unit * peak)
+    count = len(scaled)
+    gram = [[None] * count for _ in range(count)]
+    for i in range(count):
+        for j in range(i, count):  # entry by entry: a column without parameters stays one,
+            # and a product with it is a matrix product under vmap
+            gram[i][j] = gram[j][i] = (w * scaled[j]) @ scaled[i]
+    projections = [(w * t) @ s for s in scaled]
+    to_x = jnp.stack([jnp.asarray(x, dtype=c.dtype) for x in to_x])
+    low, high = model.coefficient_bounds(bounds)
+    pairs = model.scale_sums(bounds)
+    total = jnp.sum(w * t * t)
+    if count <= 3 and all(p[:2] == (0, 1) for p in pairs):  # every single model
+        pair = pairs[0] if pairs else None
+        if pair is not None:  # x_0 / to_x_0 + x_1 / to_x_1 within the scale's bounds
+            pair = ((1.0 / to_x[0], 1.0 / to_x[1]), *pair[2:])
+        x, value = box_least_squares(gram, projections, total, low * to_x, high * to_x, pair)
+    else:  # sums of models: more coefficients, or several bounded sums
+        pairs = [(i, j, 1.0 / to_x[i], 1.0 / to_x[j], s_low, s_high)
+                 for i, j, s_low, s_high in pairs]
+        x, value = polytope_least_squares(jnp.stack([jnp.stack(row) for row in gram]),
+                                          jnp.stack(projections), total, low * to_x,
+                                          high * to_x, pairs)
+    coefficients = jnp.clip(x / to_x, low, high)
+    return model.assemble(coefficients, params, bounds), value
+
+
+# A free coordinate's pivot in the Cholesky factor below this fraction of its diagonal
+# counts as singular (the columns are collinear within float32's precision).
+PIVOT_TOLERANCE = 1e-6
+
+
+def box_least_squares(gram, projections, total, low, high, pair=None):
+    """Exact minimum of ``q(x) = total - 2 p.x + x.G.x`` over the box ``low <= x <= high``.
+
+    q is a convex quadratic, so its minimum over a polytope is the unconstrained minimum of
+    some face. In the box each coordinate is free, at its lower or at its upper bound: all
+    ``3^K`` faces are tried (K, the number of linear coefficients, is at most 3 here: 27
+    tiny solves, unrolled Cholesky factorisations), and the best face whose free solution
+    lies inside the box wins. The faces with every coordinate at a bound always qualify.
+
+    With ``pair = ((w0, w1), s_low, s_high)`` the first two coordinates are instead
+    non-negative with ``s_low <= w0 x0 + w1 x1 <= s_high`` (the weights of a `mixture`,
+    whose sum is a bounded scale). Their faces are the 9 of that trapezoid: its inside,
+    its 4 edges (a weight 0, or the sum on a bound, with the other free) and its 4 corners.
+
+    Args:
+        gram: G as a K x K nested list of scalars; projections: p, K scalars; total: q(0).
+        low, high: the box (K,).
+        pair: the first two coordinates' constraint, or None.
+
+    Returns:
+        (x (K,), q(x) clipped at 0).
+    """
+    count = len(projections)
+    candidates, values = [], []
+    for coords, inside_of in _faces(count, low, high, pair):
+        free = sorted({j for _, terms in coords for j in terms})
+        anchor = [a for a, _ in coords]
+        # x = a + B y over the free variables y: (B'GB) y = B'(p - G a)
+        residual = [projections[k] - sum(gram[k][m] * anchor[m] for m in range(count)
+                                          if not _is_zero(anchor[m])) for k in range(count)]
+        reduced = [[sum(_times(coords[k][1][i] * coords[m][1][j], gram[k][m])
+                        for k in range(count) if i in coords[k][1]
+                        for m in range(count) if j in coords[m][1]) for j in free]
+                   for i in free]
+        rhs = [sum(_times(coords[k][1][i], residual[k]) for k in range(count)
+                   if i in coords[k][1]) for i in free]
+        solved, regular = _cholesky_solve(reduced, rhs)
+        y = dict(zip(free, solved))
+        x = [a + sum(_times(b, y[j]) for j, b in terms.items()) for a, terms in coords]
+        value = total - 2 * sum(projections[k] * x[k] for k in range(count)) + sum(
+            gram[i][j] * x[i] * x[j] for i in range(count) for j in range(count))
+        candidates.append(jnp.stack([jnp.asarray(v, dtype=jnp.result_type(total)) for v in x]))
+        values.append(jnp.where(regular & inside_of(x) & ~jnp.isnan(value), value, jnp.inf))
+    values = jnp.stack(values)
+    best = jnp.argmin(values)
+    return jnp.stack(candidates)[best], jnp.maximum(values[best], 0.0)
+
+
+def polytope_least_squares(gram, projections, total, low, high, pairs=()):
+    """`box_least_squares` for more coefficients and several bounded pairs, vectorised.
+
+    The same exact method (a convex quadratic's minimum over a polytope is the free minimum
+    of one of its faces; every face is tried and the best one whose solution is feasible
+    wins), with the faces as arrays rather than unrolled code, so that a sum of models
+    (``ggx+ggx``: 5 coefficients, two bounded pairs, 243 faces) compiles in about the time
+    of one face. Each coordinate outside a pair is free, at its lower or at its upper bound;
+    each pair ``(i, j, w_i, w_j, s_low, s_high)`` (``x_i, x_j >= 0``, ``s_low <= w_i x_i +
+    w_j x_j <= s_high``) takes one of its 9 faces (`_pair_faces`).
+
+    Args:
+        gram: G (K, K); projections: p (K,); total: q(0).
+        low, high: the box (K,) of the coordinates outside the pairs.
+        pairs: the bounded pairs.
+
+    Returns:
+        (x (K,), q(x) clipped at 0).
+    """
+    count = projections.shape[0]
+    dtype = jnp.result_type(total)
+    paired = {k for i, j, *_ in pairs for k in (i, j)}
+    # The faces' structure is static (NumPy); their numbers come from two short traced
+    # vectors: ``values`` (anchors: 0, the bounds, each pair's corners) and ``ratios`` (the
+    # slope -w_i / w_j of each pair's sum edge), so that the traced graph stays small.
+    values = [jnp.asarray(0.0, dtype)] + [low[k] for k in range(count)] + [
+        high[k] for k in range(count)]
+    ratios = [jnp.asarray(1.0, dtype)]
+    # Each coordinate's options: (coordinate, anchor's index in values, {free variable:
+    # index in ratios}, checks), a check being (kind, coordinate or pair number): kind 0
+    # low <= x_k <= high, 1 x_k >= 0, 2 the pair's sum within its bounds.
+    choices = []
+    for k in range(count):
+        if k not in paired:
+            choices.append([[(k, 0, {k: 0}, [(0, k)])], [(k, 1 + k, {}, [])],
+                            [(k, 1 + count + k, {}, [])]])
+    for number, (i, j, w_i, w_j, s_low, s_high) in enumerate(pairs):
+        ratios.append(-w_i / w_j)
+        slope = len(ratios) - 1
+        faces = [[(i, 0, {i: 0}, [(1, i)]), (j, 0, {j: 0}, [(1, j), (2, number)])],
+                 [(i, 0, {}, []), (j, 0, {j: 0}, [(1, j), (2, number)])],
+                 [(i, 0, {i: 0}, [(1, i), (2, number)]), (j, 0, {}, [])]]
+        for s in (s_low, s_high):
+            values += [s / w_j, s / w_i]
+            on_j, on_i = len(values) - 2, len(values) - 1
+            faces.append([(i, 0, {i: 0}, [(1, i)]), (j, on_j, {i: slope}, [(1, j)])])
+            faces.append([(i, 0, {}, []), (j, on_j, {}, [])])
+            faces.append([(i, on_i, {}, []), (j, 0, {}, [])])
+        choices.append(faces)
+    kinds = [(0, k) for k in range(count)] + [(1, k) for k in range(count)] + [
+        (2, n) for n in range(len(pairs))]
+    faces = list(itertools.product(*choices))
+    anchor_of = np.zeros((len(faces), count, len(values)))
+    basis_of = np.zeros((len(faces), count, count, len(ratios)))
+    free = np.zeros((len(faces), count), dtype=bool)
+    checks = np.zeros((len(faces), len(kinds)), dtype=bool)
+    for f, face in enumerate(faces):
+        for k, anchor, terms, wanted in (e for group in face for e in group):
+            anchor_of[f, k, anchor] = 1.0
+            for variable, ratio in terms.items():
+                basis_of[f, k, variable, ratio] = 1.0
+                free[f, variable] = True
+            for check in wanted:
+                checks[f, kinds.index(check)] = True
+    values = jnp.stack([jnp.asarray(v, dtype) for v in values])
+    ratios = jnp.stack([jnp.asarray(r, dtype) for r in ratios])
+    anchors = jnp.sum(jnp.asarray(anchor_of, dtype) * values, axis=-1)       # (F, K)
+    bases = jnp.sum(jnp.asarray(basis_of, dtype) * ratios, axis=-1)          # (F, K, K)
+    free, checks = jnp.asarray(free), jnp.asarray(checks)
+    # x = a + B y; (B'GB) y = B'(p - G a) over the free y (the others pinned to 0).
+    # Products as broadcast sums, not einsum: XLA on CPU runs a batch of tiny matrix
+    # products (a population times the faces) one small call each, about 10x slower.
+    gram_bases = jnp.sum(gram[None, :, :, None] * bases[:, None, :, :], axis=2)  # G B
+    reduced = jnp.sum(bases[:, :, :, None] * gram_bases[:, :, None, :], axis=1)
+    pinned = ~free
+    reduced = jnp.where(pinned[:, :, None] | pinned[:, None, :], 0.0, reduced)
+    diagonal = jnp.diagonal(reduced, axis1=1, axis2=2)
+    reduced = reduced + jnp.eye(count, dtype=dtype) * jnp.where(pinned, 1.0, 0.0)[:, None, :]
+    residual = projections - jnp.sum(anchors[:, :, None] * gram[None], axis=1)
+    rhs = jnp.sum(bases * residual[:, :, None], axis=1)
+    rhs = jnp.where(free, rhs, 0.0)
+    # Cholesky unrolled over the K coordinates, vectorised over the faces: no LAPACK call
+    # (LAPACK's custom calls were seen to hang XLA on CPU with several threads or devices,
+    # see `brdfjax.fitting.polish`; this is as fast for K <= 7).
+    rows = [[reduced[:, i, j] for j in range(count)] for i in range(count)]
+    y, pivots = _cholesky_solve(rows, [rhs[:, i] for i in range(count)], with_pivots=True)
+    y = jnp.stack(y, axis=1)
+    regular = jnp.all(pinned | (jnp.stack(pivots, axis=1) > PIVOT_TOLERANCE * diagonal), axis=1)
+    x = anchors + jnp.sum(bases * y[:, None, :], axis=2)
+    satisfied = [(x >= low) & (x <= high)]  # kind 0
+    satisfied.append(x >= 0)  # kind 1
+    sums = [w_i * x[:, i] + w_j * x[:, j] for i, j, w_i, w_j, *_ in pairs]
+    if pairs:
+        satisfied.append(jnp.stack([(total_ >= p[4]) & (total_ <= p[5])
+                                    for total_, p in zip(sums, pairs)], axis=1))
+    satisfied = jnp.concatenate(satisfied, axis=1)
+    inside = jnp.all(~checks | satisfied, axis=1)
+    value = total - 2 * jnp.sum(x * projections, axis=1) + jnp.sum(
+        x * jnp.sum(x[:, None, :] * gram[None], axis=2), axis=1)
+    value = jnp.where(regular & inside & ~jnp.isnan(value), value, jnp.inf)
+    best = jnp.argmin(value)
+    return x[best], jnp.maximum(value[best], 0.0)
+
+
+def _is_zero(value) -> bool:
+    return isinstance(value, float) and value == 0.0
+
+
+def _times(coefficient, value):
+    """``coefficient * value``, without an operation where the coefficient is the number 1."""
+    return value if isinstance(coefficient, float) and coefficient == 1.0 else coefficient * value
+
+
+def _faces(count, low, high, pair):
+    """The faces of `box_least_squares`' polytope: for each, every coordinate as
+    ``(constant, {free variable: coefficient})`` and a function of the solved x that says
+    whether the free solution lies inside the polytope."""
+    boxed = range(2 if pair is not None else 0, count)
+    box_states = []
+    for k in boxed:  # free, at the lower bound, at the upper bound
+        box_states.append([((0.0, {k: 1.0}), lambda x, k=k: (x[k] >= low[k]) & (x[k] <= high[k])),
+                           ((low[k], {}), None), ((high[k], {}), None)])
+    pair_states = [[]] if pair is None else _pair_faces(*pair)
+    for first in pair_states:
+        for rest in itertools.product(*box_states):
+            states = list(first) + list(rest)
+            coords = [coord for coord, _ in states]
+            checks = [check for _, check in states if check is not None]
+
+            def inside_of(x, checks=checks):
+                inside = jnp.asarray(True)
+                for check in checks:
+                    inside = inside & check(x)
+                return inside
+
+            yield coords, inside_of
+
+
+def _pair_faces(weights, s_low, s_high):
+    """The 9 faces of ``x0, x1 >= 0, s_low <= w0 x0 + w1 x1 <= s_high`` (variables 0, 1)."""
+    w0, w1 = weights
+
+    def sum_inside(x):
+        total = w0 * x[0] + w1 * x[1]
+        return (total >= s_low) & (total <= s_high)
+
+    inside = [(((0.0, {0: 1.0}), None), ((0.0, {1: 1.0}),
+               lambda x: (x[0] >= 0) & (x[1] >= 0) & sum_inside(x)))]
+    edges = [(((0.0, {}), None), ((0.0, {1: 1.0}), sum_inside)),
+             (((0.0, {0: 1.0}), sum_inside), ((0.0, {}), None))]
+    for s in (s_low, s_high):  # the sum on a bound: x1 = (s - w0 x0) / w1, both >= 0
+        edges.append((((0.0, {0: 1.0}), lambda x: (x[0] >= 0) & (x[1] >= 0)),
+                      ((s / w1, {0: -w0 / w1}), None)))
+    corners = [(((0.0, {}), None), ((s / w1, {}), None)) for s in (s_low, s_high)]
+    corners += [(((s / w0, {}), None), ((0.0, {}), None)) for s in (s_low, s_high)]
+    return inside + edges + corners
+
+
+def _cholesky_solve(matrix, rhs, with_pivots=False):
+    """Solve a small SPD system given as nested lists (unrolled); also whether it is regular
+    (or, ``with_pivots``, each pivot, for the caller to judge)."""
+    size = len(rhs)
+    factor = [[None] * size for _ in range(size)]
+    regular = jnp.asarray(True)
+    pivots = []
+    for j in range(size):
+        pivot = matrix[j][j] - sum(factor[j][k] ** 2 for k in range(j))
+        pivots.append(pivot)
+        regular = regular & (pivot > PIVOT_TOLERANCE * matrix[j][j])
+        root = jnp.sqrt(jnp.where(pivot > 0, pivot, 1.0))
+        factor[j][j] = root
+        for i in range(j + 1, size):
+            factor[i][j] = (matrix[i][j] - sum(factor[i][k] * factor[j][k]
+                                               for k in range(j))) / root
+    forward = []
+    for i in range(size):
+        forward.append((rhs[i] - sum(factor[i][k] * forward[k] for k in range(i)))
+                       / factor[i][i])
+    solution = [None] * size
+    for i in reversed(range(size)):
+        solution[i] = (forward[i] - sum(factor[k][i] * solution[k]
+                                        for k in range(i + 1, size))) / factor[i][i]
+    return (solution, pivots) if with_pivots else (solution, regular)

@@ -1,0 +1,328 @@
+"""A learned discrepancy: a Gaussian process on what the analytic model gets wrong.
+
+Every analytic model errs in shape on real materials (40-70 % in the low-signal wings of the
+RT-300S coatings, whatever the model). That error is smooth in the angles an isotropic BRDF
+depends on, so a Gaussian process learns it from the training points and corrects the
+prediction where nothing was measured:
+
+- the residual of each point is the log ratio ``r = log(max(y, 0) + floor) -
+  log(y_hat + floor)``, with ``floor`` the conformal floor of `brdfjax.prediction.intervals` (5 % of
+  the median |BRDF|): relative where the BRDF is well above it, absolute near zero;
+- its inputs are the half and difference angles of Rusinkiewicz's coordinates,
+  ``(theta_h, theta_d)`` in radians, plus the folded difference azimuth ``phi_d`` (in
+  ``[0, pi/2]``: reciprocity and the mirror symmetry of an isotropic BRDF) when the training
+  data leave the plane of incidence (in the plane it is constant);
+- the process has a constant mean, an ARD squared-exponential kernel (one length scale per
+  input) and a white-noise term, all learned by maximising the marginal likelihood
+  (the best of a few candidate starts, `START_LENGTHS` x `START_NOISE`, then optimistix
+  BFGS, inside the box `HYPER_BOX`); tinygp evaluates the likelihood;
+- the prediction is ``(y_hat + floor) exp(mu) - floor``; ``sigma`` (the predictive standard
+  deviation of a new measurement's ``r``, noise included) scales the conformal score.
+
+Scale: a process is fitted to at most `MAX_POINTS` training points. Above that the rule is
+fixed: the points sorted by incidence, azimuth and reflection zenith, then `MAX_POINTS` of
+them evenly spaced along that order (so every incidence keeps its share). A likelihood costs
+O(M^3) with M <= `MAX_POINTS` whatever the data's size; a prediction costs O(M^2) per point,
+done in blocks of `BLOCK` points.
+
+All processes of a call (every cross-validation fold, the full fit, every model of
+``brdfjax models``) are fitted side by side in one compiled call: their training sets are
+padded to one size with points placed far apart from everything (the kernel between them and
+any other point is exactly 0), whose contribution to the likelihood is removed exactly.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from brdfjax.cache import stage
+
+MAX_POINTS = 256
+BLOCK = 16384
+# The candidate starts, scored without gradients: length scales (rad, all inputs alike) times
+# noise as a fraction of the residuals' spread.
+START_LENGTHS = (0.05, 0.15, 0.5, 1.5)
+START_NOISE = (0.1, 0.5)
+# (low, high) of amplitude, length scales (rad), noise (log units); the mean is free.
+HYPER_BOX = {"amplitude": (1e-3, 5.0), "length": (1e-2, 5.0), "noise": (1e-3, 2.0)}
+MAX_STEPS = 60
+RTOL = 1e-5
+_FAR = 1e4  # padding coordinates: exp(-(1e4 / 5)^2 / 2) is exactly 0 in float64
+
+
+def features(theta_i, theta_r, phi_r, azimuth: bool) -> np.ndarray:
+    """Rusinkiewicz's ``(theta_h, theta_d[, phi_d folded])`` (N, 2 or 3), radians."""
+    theta_i, theta_r, phi_r = np.broadcast_arrays(*(np.asarray(x, float)
+                                                    for x in (theta_i, theta_r, phi_r)))
+    w_i = np.stack([np.sin(theta_i), np.zeros_like(theta_i), np.cos(theta_i)], axis=-1)
+    w_r = np.stack([np.sin(theta_r) * np.cos(phi_r), np.sin(theta_r) * np.sin(phi_r),
+                    np.cos(theta_r)], axis=-1)
+    s = w_i + w_r
+    norm = np.linalg.norm(s, axis=-1, keepdims=True)
+    # w_r = -w_i (both grazing, opposite azimuths): the facet lies in the surface plane.
+    h = np.where(norm > 0, s / np.where(norm > 0, norm, 1.0), [1.0, 0.0, 0.0])
+    theta_h = np.arccos(np.clip(h[..., 2], -1.0, 1.0))
+    theta_d = np.arccos(np.clip(np.sum(w_i * h, axis=-1), -1.0, 1.0))
+    columns = [theta_h, theta_d]
+    if azimuth:
+        # w_i in the frame whose pole is h: rotate by -phi_h about z, then -theta_h about y.
+        phi_h = np.arctan2(h[..., 1], h[..., 0])
+        c, s_ = np.cos(phi_h), np.sin(phi_h)
+        x = c * w_i[..., 0] + s_ * w_i[..., 1]
+        y = -s_ * w_i[..., 0] + c * w_i[..., 1]
+        x, z = (np.cos(theta_h) * x - np.sin(theta_h) * w_i[..., 2],
+                np.sin(theta_h) * x + np.cos(theta_h) * w_i[..., 2])
+        del z
+        phi_d = np.mod(np.arctan2(y, x), np.pi)
+        columns.append(np.minimum(phi_d, np.pi - phi_d))
+    return np.stack(columns, axis=-1)
+
+
+def log_residual(measured, predicted, floor: float) -> np.ndarray:
+    """``log(max(y, 0) + floor) - log(y_hat + floor)``: what the process learns."""
+    return (np.log(np.maximum(measured, 0.0) + floor)
+            - np.log(np.maximum(predicted, 0.0) + floor))
+
+
+def subsample(order_keys, limit: int = MAX_POINTS) -> np.ndarray:
+    """Indices of at most ``limit`` points, evenly spaced along the order of ``order_keys``
+    (a tuple of arrays, the last the primary key, as `numpy.lexsort` takes)."""
+    order = np.lexsort(order_keys)
+    if order.size <= limit:
+        return np.sort(order)
+    return np.sort(order[np.round(np.linspace(0, order.size - 1, limit)).astype(int)])
+
+
+def _physical(u, dims: int):
+    """Hyperparameters from unconstrained ``u``: (mean, amplitude, lengths (dims,), noise)."""
+    def boxed(x, name):
+        low, high = HYPER_BOX[name]
+        return low * (high / low) ** jax.nn.sigmoid(x)
+
+    return (u[0], boxed(u[1], "amplitude"), boxed(u[2:2 + dims], "length"),
+            boxed(u[2 + dims], "noise"))
+
+
+def _unconstrained(value, name):
+    low, high = HYPER_BOX[name]
+    t = np.clip(np.log(value / low) / np.log(high / low), 1e-3, 1 - 1e-3)
+    return np.log(t / (1 - t))
+
+
+def _kernel(u, dims: int):
+    """The tinygp kernel of hyperparameters ``u`` on ``dims`` inputs (no noise)."""
+    from tinygp import kernels, transforms
+
+    _, amplitude, lengths, _ = _physical(u, dims)
+    return amplitude**2 * transforms.Linear(1.0 / lengths, kernels.ExpSquared())
+
+
+def _process(u, x):
+    """The tinygp process of hyperparameters ``u`` on inputs ``x`` (M, D)."""
+    from tinygp import GaussianProcess
+
+    mean, _, _, noise = _physical(u, x.shape[-1])
+    return GaussianProcess(_kernel(u, x.shape[-1]), x, diag=noise**2, mean=mean)
+
+
+def _log_likelihood(u, x, r, count):
+    """The marginal log likelihood of the ``count`` real points of a padded training set.
+
+    A padded point is independent of every other (the kernel between them is 0) and holds
+    the mean, so it adds ``-log(2 pi (amplitude^2 + noise^2)) / 2`` exactly: taken back.
+    """
+    mean, amplitude, _, noise = _physical(u, x.shape[-1])
+    padded = r.shape[0] - count
+    total = _log_probability(u, x, jnp.where(jnp.arange(r.shape[0]) < count, r, mean))
+    return total + 0.5 * padded * jnp.log(2 * jnp.pi * (amplitude**2 + noise**2))
+
+
+@jax.custom_vjp
+def _log_probability(u, x, y):
+    """tinygp's log probability of ``y`` under the process of ``u`` on ``x``.
+
+    Its gradient is the classical ``0.5 tr((alpha alpha^T - K^-1) dK/du)`` (plus
+    ``sum(alpha)`` for the mean), with ``dK/du`` by autodiff of the kernel matrix alone:
+    differentiating through the Cholesky factorisation costs 25-80 times the likelihood on a
+    CPU (JAX 0.10), this costs about three times.
+    """
+    return _process(u, x).log_probability(y)
+
+
+def _log_probability_forward(u, x, y):
+    process = _process(u, x)
+    solver = process.solver
+    alpha = solver.solve_triangular(solver.solve_triangular(y - u[0]), transpose=True)
+    inverse = solver.solve_triangular(solver.solve_triangular(jnp.eye(y.shape[0])),
+                                      transpose=True)
+    return process.log_probability(y), (u, x, alpha, inverse)
+
+
+def _log_probability_backward(saved, cotangent):
+    u, x, alpha, inverse = saved
+    _, pullback = jax.vjp(lambda v: _covariance(v, x), u)
+    (gradient,) = pullback(0.5 * (jnp.outer(alpha, alpha) - inverse))
+    gradient = gradient.at[0].add(jnp.sum(alpha))
+    return cotangent * gradient, jnp.zeros_like(x), cotangent * -alpha
+
+
+_log_probability.defvjp(_log_probability_forward, _log_probability_backward)
+
+
+def _covariance(u, x):
+    """The covariance matrix of the process of ``u`` on ``x`` (M, M), noise included."""
+    _, _, _, noise = _physical(u, x.shape[-1])
+    return _kernel(u, x.shape[-1])(x, x) + noise**2 * jnp.eye(x.shape[0])
+
+
+@stage
+def _fit_hyperparameters(x, r, count, candidates):
+    """Maximum marginal likelihood of each padded training set ``(x (B, M, D), r (B, M),
+    count (B,))``: the best of the ``candidates (B, C, K)`` (scored without gradients), then
+    BFGS from it. Returns ``(u (B, K), log L (B,), BFGS steps (B,))``."""
+    import optimistix as optx
+
+    def one(x, r, count, candidates):
+        def loss(u, _):
+            value = -_log_likelihood(u, x, r, count) / count
+            return jnp.where(jnp.isfinite(value), value, 1e10)
+
+        scores = jax.vmap(loss, in_axes=(0, None))(candidates, None)
+        start = candidates[jnp.argmin(scores)]
+        solution = optx.minimise(loss, optx.BFGS(rtol=RTOL, atol=RTOL), start,
+                                 max_steps=MAX_STEPS, throw=False)
+        better = loss(solution.value, None) <= jnp.min(scores)
+        u = jnp.where(better, solution.value, start)
+        return u, _log_likelihood(u, x, r, count), solution.stats["num_steps"]
+
+    return jax.vmap(one)(x, r, count, candidates)
+
+
+@stage
+def _condition(u, x, r, count):
+    """``K^-1 (r - mean)`` and ``L^-1`` (M, M) of a fitted process: what every prediction
+    needs, formed once (XLA's triangular solves on a CPU are slow; products are not)."""
+    mean = _physical(u, x.shape[-1])[0]
+    solver = _process(u, x).solver
+    centred = jnp.where(jnp.arange(r.shape[0]) < count, r, mean) - mean
+    alpha = solver.solve_triangular(solver.solve_triangular(centred), transpose=True)
+    return alpha, solver.solve_triangular(jnp.eye(r.shape[0]))
+
+
+@stage
+def _predict(u, x, alpha, whiten, x_test):
+    """Mean and standard deviation (noise included) of ``r`` at ``x_test`` (T, D), from
+    `_condition`'s ``alpha`` and ``whiten``."""
+    mean, amplitude, _, noise = _physical(u, x.shape[-1])
+    cross = _kernel(u, x.shape[-1])(x_test, x)  # (T, M)
+    variance = amplitude**2 - jnp.sum((cross @ whiten.T) ** 2, axis=1) + noise**2
+    return mean + cross @ alpha, jnp.sqrt(jnp.maximum(variance, noise**2))
+
+
+@dataclass
+class Discrepancy:
+    """A fitted Gaussian process of the log residual (see the module docstring).
+
+    Attributes:
+        floor: the absolute floor of the log residual (1/sr).
+        azimuth: whether ``phi_d`` is an input (out-of-plane training data).
+        mean, amplitude, noise: the learned constant mean, kernel amplitude and white noise
+            (log units: 0.1 is about 10 %).
+        lengths: the learned length scale of each input (rad).
+        points: how many training points the process holds (after `subsample`).
+    """
+
+    floor: float
+    azimuth: bool
+    mean: float
+    amplitude: float
+    lengths: tuple
+    noise: float
+    points: int
+    _u: np.ndarray
+    _x: np.ndarray
+    _r: np.ndarray
+    _conditioned: tuple | None = field(default=None, repr=False)
+
+    def predict(self, theta_i, theta_r, phi_r) -> tuple[np.ndarray, np.ndarray]:
+        """``(mu, sigma)`` of the log residual at angles in radians (arrays (T,))."""
+        x_test = features(theta_i, theta_r, phi_r, self.azimuth)
+        size = x_test.shape[0]
+        mu, sigma = np.empty(size), np.empty(size)
+        if self._conditioned is None:
+            self._conditioned = _condition(self._u, self._x, self._r, float(self.points))
+        for start in range(0, size, BLOCK):
+            block = x_test[start:start + BLOCK]
+            m, s = _predict(self._u, self._x, *self._conditioned,
+                            _pad_rows(block, _bucket(len(block))))
+            mu[start:start + len(block)] = np.asarray(m)[:len(block)]
+            sigma[start:start + len(block)] = np.asarray(s)[:len(block)]
+        return mu, sigma
+
+    def correct(self, model_brdf, mu) -> np.ndarray:
+        """The corrected BRDF ``(y_hat + floor) exp(mu) - floor``."""
+        return (np.maximum(model_brdf, 0.0) + self.floor) * np.exp(mu) - self.floor
+
+    def to_dict(self) -> dict:
+        names = ("theta_h", "theta_d", "phi_d")[:len(self.lengths)]
+        return {"kind": "gp", "floor": self.floor, "mean": self.mean,
+                "amplitude": self.amplitude, "noise": self.noise,
+                "length_scales_rad": dict(zip(names, self.lengths)),
+                "training_points": self.points}
+
+
+def _bucket(count: int) -> int:
+    """The padded size of ``count`` rows: a multiple of 32 up to 256, then a power of two
+    (few compiled shapes, little padding: a likelihood costs the cube of it)."""
+    return -(-int(count) // 32) * 32 if count <= 256 else 1 << (int(count) - 1).bit_length()
+
+
+def _pad_rows(x: np.ndarray, length: int) -> np.ndarray:
+    """``x`` (N, D) padded to ``length`` rows far apart from each other and from the data."""
+    extra = length - x.shape[0]
+    far = np.zeros((extra, x.shape[1]))
+    far[:, 0] = _FAR * (1 + np.arange(extra))
+    return np.concatenate([x, far])
+
+
+def fit_discrepancies(sets: list, floor: float, azimuth: bool) -> list[Discrepancy]:
+    """Fit one process to each ``(features (N, D), residuals (N,))`` of ``sets``, all in one
+    compiled call (see the module docstring); sets above `MAX_POINTS` points are reduced by
+    the caller's `subsample`.
+
+    Returns:
+        A `Discrepancy` per set, in order.
+    """
+    sizes = [len(r) for _, r in sets]
+    if max(sizes) > MAX_POINTS:
+        raise ValueError(f"a discrepancy holds at most {MAX_POINTS} points; subsample first")
+    if min(sizes) < 3:
+        raise ValueError("a discrepancy needs at least 3 training points")
+    length = _bucket(max(sizes))
+    dims = sets[0][0].shape[1]
+    x = np.stack([_pad_rows(np.asarray(f, float), length) for f, _ in sets])
+    r = np.stack([np.concatenate([res, np.zeros(length - len(res))]) for _, res in sets])
+    count = np.asarray(sizes, dtype=float)
+    starts = []
+    for _, res in sets:
+        spread = max(float(np.std(res)), 2e-3)
+        starts.append([np.concatenate([[np.mean(res)], [_unconstrained(spread, "amplitude")],
+                                       np.full(dims, _unconstrained(scale, "length")),
+                                       [_unconstrained(fraction * spread, "noise")]])
+                       for scale in START_LENGTHS for fraction in START_NOISE])
+    lanes = -(-len(sets) // 4) * 4  # a multiple of 4: few compiled batch sizes
+    fill = [0] * (lanes - len(sets))  # extra lanes repeat the first set
+    u, _, _ = _fit_hyperparameters(*(jnp.asarray(np.concatenate([a, a[fill]])) for a in (
+        x, r, count, np.array(starts))))
+    u = np.asarray(u)
+    fitted = []
+    for k, size in enumerate(sizes):
+        mean, amplitude, lengths, noise = (np.asarray(v) for v in _physical(u[k], dims))
+        fitted.append(Discrepancy(floor, azimuth, float(mean), float(amplitude),
+                                  tuple(float(v) for v in lengths), float(noise), size,
+                                  u[k], x[k], r[k]))
+    return fitted

@@ -1,0 +1,402 @@
+"""Predictive intervals for new measurements at any geometry, calibrated on held-out data.
+
+A band on the model curve (`brdfjax.uncertainty.bands`) says where the best-fitting curve lies; a
+user predicting an unmeasured incidence needs where a new *measurement* falls, and on real
+materials the model is wrong in ways no curve uncertainty covers (held-out incidences of
+the RT-300S coatings fall outside the 95 % Laplace band 53-90 % of the time). So the
+intervals here are calibrated on the data's own cross-validation
+(`brdfjax.prediction.cross_validation`): split-conformal prediction over incidence folds.
+
+With ``discrepancy="gp"`` (the default) the prediction is the model corrected by a
+Gaussian process of its log residual (`brdfjax.prediction.discrepancy`), and the score follows the
+process's own uncertainty:
+
+1. Every fold's model and a process fitted to that fold's training residuals predict the
+   held-out incidence: ``mu`` and ``sigma`` of the log residual. Each held-out point gets the
+   score ``r = |log(max(y, 0) + floor) - log(y_hat + floor) - mu| / sigma``.
+2. At level ``p`` (68.27 % or 95 %) the factor ``q`` is the ``ceil((n + 1) p)``-th smallest
+   of the n scores (infinite when n is too small).
+3. At a new geometry the full fit's model ``y_hat`` and the process fitted to all training
+   residuals give the prediction ``(y_hat + floor) exp(mu) - floor`` and the interval
+   ``(y_hat + floor) exp(mu +- q sigma) - floor``: wide where the process is unsure.
+
+Where the process cannot take up the model's shape error (the paper's model on the RT-300S
+coatings, from three training incidences) that score's quantile is large and the intervals,
+exponentiated, grow wider than the model's own. So the score is chosen per data set: the
+one above, or the relative score of the corrected prediction ``r = |y - y_c| / (|y_c| +
+floor)`` (interval ``y_c +- q (|y_c| + floor)``): the first unless its median 95 % interval
+on the interior held-out points is more than `SIGMA_PREFERENCE` times the second's
+(`Calibration.score`). Choosing between two scores
+on the calibration points costs at most a few points of coverage, which the benchmarks
+measure (BENCHMARKS.md, predictive-discrepancy).
+
+With ``discrepancy="none"`` the prediction is the model itself and the score
+``r = |y - y_hat| / (|y_hat| + floor)`` (the interval ``y_hat +- q (|y_hat| + floor)``).
+Either way ``floor`` is `FLOOR_FRACTION` of the median measured |BRDF| (a stand-in for the
+instrument's absolute noise). Interior folds calibrate geometry inside the fitted incidence
+range; geometry outside it (extrapolation) uses every fold, the end folds included. The end
+folds extrapolate by the spacing of the two outermost incidences on their side: that is how
+far beyond the measured range a prediction is calibrated (`Calibration.reach`). Predictions
+are still given past it, with a warning (`Prediction.warnings`).
+
+Assumptions, stated plainly: the score of a new measurement is exchangeable with the
+scores of the held-out incidences (the model errs at an unmeasured incidence as it errs
+at a held-out one). That is what "leave one incidence out" imitates; it does not hold for
+geometry far from anything measured, and the intervals are pointwise (each contains its
+own new measurement with the stated probability, not all of them at once). With few
+incidences the calibration set is small: 3 incidences give one interior fold.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from brdfjax.data.measurements import Measurements
+
+LEVELS = {"68": 0.6827, "95": 0.95}
+FLOOR_FRACTION = 0.05
+DISCREPANCIES = ("gp", "none")
+# With a discrepancy, the process-scaled score is kept unless its intervals on the interior
+# held-out points are this many times wider than the relative score's (`calibrate_all`).
+# Chosen on the four runs bench_predictive.DECIDE (ggx and five; 1, 1.25, 1.5, 2 and never
+# tried): 1.25 gave ggx 93 % coverage at a 15 % median half-width and five 97 % at 55 %.
+SIGMA_PREFERENCE = 1.25
+
+
+@dataclass
+class Calibration:
+    """Conformal scores from cross-validation (see the module docstring).
+
+    Attributes:
+        interior: scores of the interior folds' held-out points.
+        every: scores of every fold's held-out points.
+        floor: the absolute floor of the score's scale (1/sr).
+        low, high: the fitted incidence range (deg): inside it ``interior`` calibrates.
+        reach: the incidences (deg) up to which extrapolation is calibrated (`reach_of`).
+        discrepancy: the process fitted to all training residuals (None: no correction).
+        corrected_errors: with a discrepancy, each fold's held-out E of Eq. (6) of the
+            corrected prediction, by the fold's label.
+        interior_labels: the labels of the interior folds.
+        score: ``sigma`` (the log residual's error over the process's sigma) or
+            ``relative`` (``|y - prediction| / (|prediction| + floor)``): with a
+            discrepancy, as `calibrate_all` chooses; without one, ``relative``.
+    """
+
+    interior: np.ndarray
+    every: np.ndarray
+    floor: float
+    low: float
+    high: float
+    reach: tuple = (-np.inf, np.inf)
+    discrepancy: object = None
+    corrected_errors: dict = field(default_factory=dict)
+    interior_labels: tuple = ()
+    score: str = "relative"
+
+    @property
+    def kind(self) -> str:
+        return "none" if self.discrepancy is None else "gp"
+
+    @property
+    def corrected_cv_error(self) -> float:
+        """Mean held-out E of Eq. (6) of the corrected predictions over the interior folds
+        (cv_error with the discrepancy; NaN without one)."""
+        values = [self.corrected_errors[k] for k in self.interior_labels
+                  if k in self.corrected_errors]
+        return float(np.mean(values)) if values else float("nan")
+
+    def factor(self, level: float, extrapolating: bool) -> float:
+        """The half-width factor q at ``level`` (the conformal quantile of the scores)."""
+        scores = self.every if extrapolating or self.interior.size == 0 else self.interior
+        rank = math.ceil((scores.size + 1) * level)
+        return float(np.sort(scores)[rank - 1]) if rank <= scores.size else np.inf
+
+    def to_dict(self) -> dict:
+        record = {"discrepancy": self.kind, "score": self.score, "floor": self.floor,
+                  "calibration_points": {"interior": int(self.interior.size),
+                                         "every": int(self.every.size)},
+                  "factor95": {"interior": self.factor(LEVELS["95"], False),
+                               "extrapolation": self.factor(LEVELS["95"], True)},
+                  "calibrated_incidences_deg": list(self.reach)}
+        if self.discrepancy is not None:
+            record["process"] = self.discrepancy.to_dict()
+            record["cv_error_corrected"] = self.corrected_cv_error
+        return record
+
+
+def reach_of(incidences) -> tuple[float, float]:
+    """How far beyond the measured incidences extrapolation is calibrated: the end folds
+    predict an end incidence from the next one in, so by that spacing on each side."""
+    x = np.sort(np.asarray(incidences, float))
+    if x.size < 2:
+        return float(x[0]), float(x[-1])
+    return float(max(0.0, x[0] - (x[1] - x[0]))), float(min(90.0, x[-1] + (x[-1] - x[-2])))
+
+
+def calibrate(data: Measurements, validation, *, discrepancy: str = "gp",
+              fitted=None) -> Calibration:
+    """Conformal scores of a `brdfjax.prediction.cross_validation.CrossValidation` of ``data``.
+
+    Args:
+        data: the training measurements the cross-validation ran on.
+        validation: its `CrossValidation`.
+        discrepancy: ``gp`` (a process per fold, and one on every point of ``data``) or
+            ``none``.
+        fitted: the parameter vector fitted to all of ``data`` (for the process on every
+            point; needed with ``gp``).
+    """
+    return calibrate_all(data, [(validation, fitted)], discrepancy=discrepancy)[0]
+
+
+def calibrate_all(data: Measurements, validations: list, *,
+                  discrepancy: str = "gp") -> list[Calibration]:
+    """`calibrate` of several cross-validations of ``data`` (``[(validation, fitted)]``, one
+    per model), every process of every model fitted in one batched call.
+
+    Call it from one thread: XLA's LAPACK calls (the processes' Cholesky factorisations)
+    can deadlock when several threads run them at once.
+    """
+    if discrepancy not in DISCREPANCIES:
+        raise ValueError(f"unknown discrepancy {discrepancy!r}; choose one of "
+                         f"{', '.join(DISCREPANCIES)}")
+    floor = FLOOR_FRACTION * float(np.median(np.abs(data.brdf)))
+    incidences = data.incidences_deg
+    common = {"floor": floor, "low": float(incidences.min()),
+              "high": float(incidences.max()), "reach": reach_of(incidences)}
+    if discrepancy == "none":
+        return [Calibration(*_split(v.folds, [
+            np.abs(data.brdf[f.index] - f.predicted) / (np.abs(f.predicted) + floor)
+            for f in v.folds]), **common, interior_labels=_interior(v)) for v, _ in validations]
+    if any(fitted is None for _, fitted in validations):
+        raise ValueError("calibrate(discrepancy='gp') needs the full fit's parameters")
+    from brdfjax.fitting.objective import brdf_values, prepare
+    from brdfjax.models import get
+    from brdfjax.prediction.cross_validation import held_out_error
+    from brdfjax.prediction.discrepancy import log_residual
+
+    values, masks = [], []
+    for validation, fitted in validations:
+        model = get(validation.model)
+        geometry = prepare(data, model)
+        for vector in [f.params for f in validation.folds] + [np.asarray(fitted, float)]:
+            values.append(np.asarray(brdf_values(vector, geometry, model)))
+            masks.append(np.ones(len(data), bool))
+        for mask, fold in zip(masks[-len(validation.folds) - 1:], validation.folds):
+            mask[fold.index] = False
+    processes = iter(_fit_processes(data, values, masks, floor))
+    values = iter(values)
+    calibrations = []
+    for validation, _ in validations:
+        scores = {"sigma": [], "relative": []}
+        corrected, widths = {}, []
+        for fold, value, process in zip(validation.folds, values, processes):
+            held = np.isin(np.arange(len(data)), fold.index)
+            mu, sigma = process.predict(data.theta_i[held], data.theta_r[held],
+                                        data.phi_r[held])
+            residual = log_residual(data.brdf[held], value[held], floor)
+            centre = process.correct(value[held], mu)
+            scores["sigma"].append(np.abs(residual - mu) / sigma)
+            scores["relative"].append(np.abs(data.brdf[held] - centre) / (np.abs(centre) + floor))
+            full = value.copy()
+            full[held] = centre
+            corrected[fold.label] = held_out_error(full, data, held)
+            if fold.interior:
+                widths.append((value[held], mu, sigma))
+        next(values)
+        full_process = next(processes)
+        candidates = [Calibration(*_split(validation.folds, found), **common,
+                                  interior_labels=_interior(validation),
+                                  discrepancy=full_process, corrected_errors=corrected,
+                                  score=kind) for kind, found in scores.items()]
+        sigma_width, relative_width = (_median_width(c, widths) for c in candidates)
+        calibrations.append(candidates[0] if sigma_width <= SIGMA_PREFERENCE * relative_width
+                            else candidates[1])
+    return calibrations
+
+
+def _median_width(calibration: Calibration, interior: list) -> float:
+    """The median 95 % half-width (relative to the prediction) that ``calibration`` gives
+    its own interior held-out points: what `calibrate_all` chooses the score by."""
+    q = calibration.factor(LEVELS["95"], False)
+    if not np.isfinite(q) or not interior:
+        return np.inf
+    widths = []
+    for value, mu, sigma in interior:
+        centre = calibration.discrepancy.correct(value, mu)
+        low, high = _interval(calibration, q, value, centre, mu, sigma)
+        widths.append((high - low) / 2 / np.abs(centre))
+    return float(np.median(np.concatenate(widths)))
+
+
+def _interval(calibration: Calibration, q, values, centre, mu, sigma):
+    """``(low, high)`` at factor ``q`` around ``centre`` (the model's ``values``, corrected
+    by ``mu`` where there is a discrepancy), in the form of ``calibration.score``."""
+    if calibration.discrepancy is None or calibration.score == "relative":
+        scale = np.abs(centre) + calibration.floor
+        return centre - q * scale, centre + q * scale
+    with np.errstate(over="ignore", invalid="ignore"):
+        return (calibration.discrepancy.correct(values, mu - q * sigma),
+                calibration.discrepancy.correct(values, mu + q * sigma))
+
+
+def _interior(validation) -> tuple:
+    return tuple(f.label for f in validation.folds if f.interior)
+
+
+def _split(folds, scores) -> tuple[np.ndarray, np.ndarray]:
+    """(interior scores, every score) of the folds' score arrays."""
+    interior = [s for f, s in zip(folds, scores) if f.interior]
+    return (np.concatenate(interior) if interior else np.zeros(0), np.concatenate(scores))
+
+
+def _fit_processes(data: Measurements, values: list, masks: list, floor: float) -> list:
+    """One `brdfjax.prediction.discrepancy.Discrepancy` per (model values, training mask), fitted in
+    one batched call on at most `brdfjax.prediction.discrepancy.MAX_POINTS` of each mask's
+    points."""
+    from brdfjax.prediction.discrepancy import (
+        MAX_POINTS,
+        features,
+        fit_discrepancies,
+        log_residual,
+        subsample,
+    )
+
+    azimuth = not data.in_plane
+    x = features(data.theta_i, data.theta_r, data.phi_r, azimuth)
+    sets = []
+    for value, mask in zip(values, masks):
+        index = np.flatnonzero(mask)
+        keep = index[subsample((data.theta_r[index], data.phi_r[index], data.theta_i[index]),
+                               MAX_POINTS)]
+        sets.append((x[keep], log_residual(data.brdf[keep], value[keep], floor)))
+    return fit_discrepancies(sets, floor, azimuth)
+
+
+@dataclass
+class Prediction:
+    """Predictions and predictive intervals at a list of geometries (arrays (M,)).
+
+    Attributes:
+        theta_i, theta_r, phi_r: the geometry, degrees as given.
+        brdf: the prediction (1/sr): the model corrected by the discrepancy, or the model.
+        model_brdf: the fitted analytic model's BRDF alone.
+        lo68, hi68, lo95, hi95: where a new measurement falls with 68.27 % and 95 %
+            probability.
+        measured: the geometry file's measured BRDF, or None.
+        model: the model's name.
+        discrepancy: ``gp`` or ``none``.
+        warnings: what the user should know (geometry beyond the calibrated range).
+    """
+
+    theta_i: np.ndarray
+    theta_r: np.ndarray
+    phi_r: np.ndarray
+    brdf: np.ndarray
+    model_brdf: np.ndarray
+    lo68: np.ndarray
+    hi68: np.ndarray
+    lo95: np.ndarray
+    hi95: np.ndarray
+    measured: np.ndarray | None
+    model: str
+    discrepancy: str = "none"
+    warnings: list = field(default_factory=list)
+
+    def coverage(self, level: str = "95") -> float:
+        """The share of measured values inside the interval (NaN without measurements)."""
+        if self.measured is None:
+            return float("nan")
+        low, high = getattr(self, f"lo{level}"), getattr(self, f"hi{level}")
+        return float(np.mean((self.measured >= low) & (self.measured <= high)))
+
+    def half_width(self) -> np.ndarray:
+        """The 95 % half-width relative to the prediction."""
+        return (self.hi95 - self.lo95) / 2 / np.abs(self.brdf)
+
+    def to_csv(self) -> str:
+        """CSV text: ``theta_i,theta_r,phi_r,brdf,model_brdf,lo68,hi68,lo95,hi95[,measured]``."""
+        columns = ["theta_i", "theta_r", "phi_r", "brdf", "model_brdf", "lo68", "hi68",
+                   "lo95", "hi95"]
+        if self.measured is not None:
+            columns.append("measured")
+        table = np.stack([getattr(self, c) for c in columns], axis=1)
+        lines = [",".join(columns)]
+        lines += [",".join(f"{v:.10g}" for v in row) for row in table]
+        return "\n".join(lines) + "\n"
+
+    def to_dict(self) -> dict:
+        """A summary for JSON (the values themselves go to the CSV)."""
+        record = {"model": self.model, "discrepancy": self.discrepancy,
+                  "points": int(self.brdf.size),
+                  "median_half_width95": float(np.median(self.half_width())),
+                  "warnings": self.warnings}
+        if self.measured is not None:
+            record["coverage"] = {"95": self.coverage("95"), "68": self.coverage("68")}
+        return record
+
+
+def predict(result, geometry: Measurements, calibration: Calibration | None = None, *,
+            discrepancy: str = "gp", seed: int = 0) -> Prediction:
+    """Predictive intervals of a fit at the geometry of ``geometry`` (any brdfjax file).
+
+    Args:
+        result: a `brdfjax.fitting.fit.FitResult` (its model, bounds and training data are used).
+        geometry: where to predict (a `Measurements`; its BRDF, if any, is reported as
+            ``measured``; a geometry-only file has NaN there).
+        calibration: conformal scores; computed by
+            `brdfjax.prediction.cross_validation.cross_validate` of the fit's training data
+            if None (all folds in one batched fit).
+        discrepancy: ``gp`` (model times the learned correction, the default) or ``none``
+            (the model alone); ignored when ``calibration`` is given (it carries its kind).
+        seed: the seed of the cross-validation fits.
+
+    Returns:
+        A `Prediction`.
+    """
+    from brdfjax.fitting.objective import brdf_values, prepare
+
+    if calibration is None:
+        from brdfjax.prediction.cross_validation import cross_validate
+
+        validation = cross_validate(result.training, result.model, seed=seed,
+                                    bounds=result.bounds)
+        calibration = calibrate(result.training, validation, discrepancy=discrepancy,
+                                fitted=result.vector)
+    values = np.asarray(brdf_values(result.vector, prepare(geometry, result.model),
+                                    result.model))
+    incidence = np.degrees(geometry.theta_i)
+    outside = (incidence < calibration.low - 1e-6) | (incidence > calibration.high + 1e-6)
+    process = calibration.discrepancy
+    centre, mu, sigma = values, None, None
+    if process is not None:
+        mu, sigma = process.predict(geometry.theta_i, geometry.theta_r, geometry.phi_r)
+        centre = process.correct(values, mu)
+    bounds = {}
+    for name, level in LEVELS.items():
+        q = np.where(outside, calibration.factor(level, True), calibration.factor(level, False))
+        bounds[f"lo{name}"], bounds[f"hi{name}"] = _interval(calibration, q, values, centre,
+                                                              mu, sigma)
+    notes = []
+    low, high = calibration.reach
+    beyond = (incidence < low - 1e-6) | (incidence > high + 1e-6)
+    if beyond.any():
+        notes.append(f"{int(beyond.sum())} of {beyond.size} points have incidences beyond "
+                     f"{low:g}-{high:g} deg, the range the end folds calibrate (the measured "
+                     f"{calibration.low:g}-{calibration.high:g} deg widened by the spacing of "
+                     "the outermost incidences): their intervals assume the model errs there "
+                     "as it does one incidence step out; measure nearer incidences to trust "
+                     "them")
+        for note in notes:
+            warnings.warn(note, PredictionWarning, stacklevel=2)
+    measured = geometry.brdf if not np.all(np.isnan(geometry.brdf)) else None
+    return Prediction(incidence, np.degrees(geometry.theta_r), np.degrees(geometry.phi_r),
+                      centre, values, measured=measured, model=result.model.name,
+                      discrepancy=calibration.kind, warnings=notes, **bounds)
+
+
+class PredictionWarning(UserWarning):
+    """A prediction the calibration does not cover (geometry beyond `Calibration.reach`)."""
