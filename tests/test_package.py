@@ -23,3 +23,20 @@ def test_import_brdfjax_loads_no_jax():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout
     assert out.strip() == "False"
+
+
+def test_import_sets_the_llvm_level_unless_given():
+    import os
+
+    code = "import os, brdfjax; print(os.environ['XLA_FLAGS'])"
+
+    def flags(given):
+        env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+        env.update({"XLA_FLAGS": given} if given is not None else {})
+        return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                              check=True, env=env).stdout.split()
+
+    assert flags(None) == ["--xla_backend_optimization_level=2"]
+    assert flags("--xla_force_host_platform_device_count=2") == [
+        "--xla_force_host_platform_device_count=2", "--xla_backend_optimization_level=2"]
+    assert flags("--xla_backend_optimization_level=3") == ["--xla_backend_optimization_level=3"]
