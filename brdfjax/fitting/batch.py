@@ -55,7 +55,7 @@ import numpy as np
 
 from brdfjax.cache import stage
 from brdfjax.data.measurements import DataError, Measurements, validate
-from brdfjax.fitting.bounds import Bounds, default_bounds
+from brdfjax.fitting.bounds import Bounds, default_bounds, to_unit
 from brdfjax.fitting.evolve import EvolveConfig, EvolveResult, evolve
 from brdfjax.fitting.fit import (
     FitResult,
@@ -66,9 +66,17 @@ from brdfjax.fitting.fit import (
     search_summary,
     solved_fit,
 )
-from brdfjax.fitting.objective import Problem, bucket, pad, padded_scene, prepare, problem
+from brdfjax.fitting.objective import (
+    Problem,
+    bucket,
+    normalised_targets,
+    pad,
+    padded_scene,
+    prepare,
+)
 from brdfjax.fitting.polish import PolishResult, polish_population
 from brdfjax.models import Model, get
+from brdfjax.models.paper import evaluate_projected
 
 # The single fit's own defaults, read from its signature: a batched fit is the fit that
 # `brdfjax.fitting.fit.fit` gives each sample, whatever those defaults become.
@@ -137,29 +145,34 @@ def fit_batch(samples: Sequence[Measurements], *, model: str | Model | None = No
     order = sorted(range(len(samples)), key=lambda i: rank[keys[i]])
     for begin in range(0, len(order), chunk_size):
         # Problems are prepared chunk by chunk, so host and device memory stay bounded.
+        # Host arrays throughout: the chunk goes to the devices in one transfer.
         problems, scenes = {}, {}
         for index in order[begin:begin + chunk_size]:
             data = samples[index]
             try:
                 validate(data, path=data.name)
+                points = bucket(len(data))
                 if keys[index] not in scenes:  # padded once, shared by its samples
-                    scenes[keys[index]] = padded_scene(prepare(data, model),
-                                                       bucket(len(data)))
-                problems[index] = problem(data, model, geometry=scenes[keys[index]])
+                    scenes[keys[index]] = padded_scene(prepare(data, model), points)
+                problems[index] = Problem(scenes[keys[index]],
+                                          *normalised_targets(data, points), model)
             except (DataError, ValueError) as error:
                 results[index] = _failed(data, str(error), bounds, model)
         if not problems:
             continue
         chunk = list(problems)
         tic = time.perf_counter()
-        searched, polished = _run_chunk(list(problems.values()), seeds[chunk], bounds,
-                                        config, devices, chunk_size, settings)
+        (searched, polished), padded = _run_chunk(list(problems.values()), seeds[chunk],
+                                                  bounds, config, devices, chunk_size, settings)
+        searched, polished = _lanes(searched), _lanes(polished)
+        summaries = [polish_summary(lane) for lane in polished]
+        fitted, units = _fitted([best for best, *_ in summaries], padded, bounds)
         share = (time.perf_counter() - tic) / len(chunk)
         for lane, index in enumerate(chunk):
             results[index] = _sample_result(
-                samples[index], _lane(searched, lane), _lane(polished, lane),
-                options["population_size"], share, options["max_steps"], bounds, model,
-                problems[index].scene)
+                samples[index], searched[lane], polished[lane], summaries[lane], fitted[lane],
+                units[lane], options["population_size"], share, options["max_steps"], bounds,
+                model)
     return results
 
 
@@ -171,9 +184,10 @@ def _geometry_key(data: Measurements) -> bytes:
     return digest.digest()
 
 
-def _lane(batched, lane: int):
-    """One sample's slice of a batched result (a pytree with leading sample axis)."""
-    return jax.tree.map(lambda x: x[lane], batched)
+def _lanes(batched) -> list:
+    """Each sample's slice of a batched result (a pytree with leading sample axis)."""
+    leaves, tree = jax.tree.flatten(batched)
+    return [jax.tree.unflatten(tree, lane) for lane in zip(*leaves)]
 
 
 def _failed(data: Measurements, message: str, bounds: Bounds, model: Model) -> FitResult:
@@ -188,23 +202,31 @@ def _failed(data: Measurements, message: str, bounds: Bounds, model: Model) -> F
                      validation_incidences=[], bounds=bounds, model=model, message=message)
 
 
-def _sample_result(data, searched, polished, population_size, seconds, max_steps, bounds,
-                   model, geometry) -> FitResult:
-    """One sample's `FitResult` from its lane of the batched search and polish."""
+def _sample_result(data, searched, polished, summary, fitted, unit, population_size, seconds,
+                   max_steps, bounds, model) -> FitResult:
+    """One sample's `FitResult` from its lanes of the batched search and polish, the
+    polish's `polish_summary`, and its fitted projected BRDF and unit-cube coordinates
+    (`_fitted`)."""
     history, evaluations = search_summary(searched, population_size)
-    best, status, lm_evaluations = polish_summary(polished)
+    best, status, lm_evaluations = summary
     message = {"max_steps": f"Levenberg-Marquardt stopped at its cap of {max_steps} steps "
                             "before meeting its tolerance",
                "failed": "no start reached a finite E"}.get(status, "")
     empty = data.select(np.zeros(len(data), dtype=bool))
-    return fit_result(data, data, empty, best, bounds, model, geometry, method="hybrid",
-                      status=status, evaluations=evaluations + lm_evaluations,
+    return fit_result(data, data, empty, best, bounds, model, fitted=fitted, unit=unit,
+                      method="hybrid", status=status, evaluations=evaluations + lm_evaluations,
                       lm_steps=polished.steps, lm_success=polished.success,
                       timings={"total": seconds}, history=history, message=message)
 
 
 def _run_chunk(problems: list[Problem], seeds, bounds, config, devices, chunk_size, settings):
-    """Pad one chunk, fit a block of it on every device at once; host arrays of the samples."""
+    """Pad one chunk, fit a block of it on every device at once.
+
+    Returns:
+        The searches and polishes of the samples (host arrays), and the padded chunk fitted:
+        a `Problem` of host arrays with a leading lane axis (the scene's only where each
+        sample has its own).
+    """
     count = len(problems)
     # A device per SAMPLES_PER_DEVICE samples at most: XLA compiles a shape once per device,
     # and a small chunk (a cross-validation's folds, a few files) gains less from a second
@@ -213,7 +235,7 @@ def _run_chunk(problems: list[Problem], seeds, bounds, config, devices, chunk_si
     lanes = min(chunk_size, 1 << (count - 1).bit_length())
     lanes = -(-max(lanes, count) // len(devices)) * len(devices)
     points = max(p.target.size for p in problems)  # each already a multiple of POINT_BUCKET
-    chosen = list(range(count)) + [0] * (lanes - count)
+    chosen = _filled(count, lanes)
     shared = all(p.scene is problems[0].scene for p in problems)
     targets = np.stack([pad(problems[i].target, points, 0.0) for i in chosen])
     weights = np.stack([pad(problems[i].weight, points, 0.0) for i in chosen])
@@ -243,7 +265,38 @@ def _run_chunk(problems: list[Problem], seeds, bounds, config, devices, chunk_si
     else:
         with ThreadPoolExecutor(len(devices)) as pool:
             running = list(pool.map(dispatch, range(len(devices))))
-    return jax.tree.map(lambda *blocks: np.concatenate(blocks)[:count], *running)
+    results = jax.tree.map(lambda *blocks: np.concatenate(blocks)[:count], *running)
+    return results, Problem(scene, targets, weights, model)
+
+
+def _filled(count: int, lanes: int) -> list[int]:
+    """The sample of each of ``lanes`` lanes: every one of ``count`` samples, then copies of
+    the first (their results are dropped)."""
+    return list(range(count)) + [0] * (lanes - count)
+
+
+def _fitted(best: list, chunk: Problem, bounds: Bounds) -> tuple[np.ndarray, np.ndarray]:
+    """The projected BRDF on its points (samples, N) and the unit-cube coordinates
+    (samples, P) of each sample's best parameters as `fit_result` reports them
+    (`brdfjax.models.Model.canonical`), for the whole padded ``chunk`` (`_run_chunk`) at
+    once: the model in one compiled call.
+
+    A shared scene is broadcast to every lane: vmapped over a scene of its own, each lane
+    computes exactly what `brdfjax.fitting.objective.projected` computes for it alone (over
+    a shared one, XLA orders the arithmetic otherwise, and the last bits differ).
+    """
+    model, lanes = chunk.model, len(chunk.target)
+    vectors = np.stack([model.canonical(vector, bounds) for vector in best])
+    scene = jax.tree.map(lambda x: np.broadcast_to(x, (lanes, x.shape[-1])), chunk.scene)
+    values = _projected_lanes(vectors[_filled(len(best), lanes)], scene, model)
+    return np.asarray(values)[:len(best)], to_unit(vectors, bounds)
+
+
+@stage
+def _projected_lanes(vectors, scene, model: Model):
+    """`brdfjax.models.paper.evaluate_projected` of every lane's parameters (B, P) on its
+    scene (B, N)."""
+    return jax.vmap(evaluate_projected, in_axes=(0, 0, None))(vectors, scene, model)
 
 
 def _block(values, number: int, size: int):

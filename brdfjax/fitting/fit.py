@@ -330,35 +330,43 @@ def check_bounds(bounds: Bounds, model: Model) -> None:
                          f"brdfjax.make_bounds(..., model={model.name!r})")
 
 
-def fit_result(data, train, held, vector, bounds, model, geometry=None,
-               **details) -> FitResult:
+def fit_result(data, train, held, vector, bounds, model, geometry=None, fitted=None,
+               unit=None, **details) -> FitResult:
     """A `FitResult` for ``vector``: E overall, per incidence and held out, from one model
     evaluation of ``data`` (split into ``train`` and ``held``; ``geometry`` is the model's
     geometry of ``data``, padded or not, where already computed); ``details`` fill the rest
     (status, timings, ...).
-    `brdfjax.fitting.batch` builds each sample's result with it too."""
-    geometry = prepare(data, model) if geometry is None else geometry
+
+    ``fitted`` (the projected BRDF on the points of ``data``, padded or not) and ``unit``
+    (the unit-cube coordinates) of the reported parameters, ``model.canonical(vector)``,
+    may be given where already computed: `brdfjax.fitting.batch` computes both for a whole
+    chunk of samples at once.
+    """
     vector = np.asarray(model.canonical(vector, bounds), dtype=float)  # a sum's lobes ordered
-    fitted = np.asarray(projected(vector, geometry, model))[:len(data)]  # padded geometry
+    if fitted is None:
+        geometry = prepare(data, model) if geometry is None else geometry
+        fitted = projected(vector, geometry, model)
+    fitted = np.asarray(fitted)[:len(data)]  # padded geometry
+    unit = np.asarray(to_unit(vector, bounds)) if unit is None else unit
     target, weight = targets(data)
-    is_held = data.incidence_mask(held.incidences_deg)
+    trained, held_out = train.incidences_deg, held.incidences_deg
+    is_held = data.incidence_mask(held_out)
     theta = np.round(np.degrees(data.theta_i), 6)
 
     def error_on(mask):
         return relative_error(fitted[mask], target[mask], weight[mask])
 
-    unit = np.asarray(to_unit(vector, bounds))
     normalised = weight[~is_held] / np.sum(weight[~is_held] * target[~is_held] ** 2)
     return FitResult(
         params=model.Params(*map(float, vector)),
         error=error_on(~is_held),
-        error_by_incidence={float(d): error_on(theta == d) for d in train.incidences_deg},
+        error_by_incidence={float(d): error_on(theta == d) for d in trained},
         validation_error=error_on(is_held) if is_held.any() else None,
-        validation_by_incidence={float(d): error_on(theta == d) for d in held.incidences_deg},
+        validation_by_incidence={float(d): error_on(theta == d) for d in held_out},
         residuals=np.sqrt(normalised) * (fitted[~is_held] - target[~is_held]),
         at_bounds=[n for n, z in zip(model.names, unit) if z < 1e-6 or z > 1 - 1e-6],
-        train_incidences=[float(x) for x in train.incidences_deg],
-        validation_incidences=[float(x) for x in held.incidences_deg],
+        train_incidences=[float(x) for x in trained],
+        validation_incidences=[float(x) for x in held_out],
         bounds=bounds, model=model, training=train, **details)
 
 

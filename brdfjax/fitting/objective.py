@@ -167,12 +167,21 @@ def problem(data: Measurements, model: Model = FIVE, dtype=jnp.float64,
     geometry = prepare(data, model, dtype) if geometry is None else geometry
     if geometry.cos_theta_r.shape[-1] != points:
         geometry = padded_scene(geometry, points)
+    target, weight = normalised_targets(data, points)
+    return Problem(geometry, jnp.asarray(target, dtype), jnp.asarray(weight, dtype), model)
+
+
+def normalised_targets(data: Measurements, points: int) -> tuple[np.ndarray, np.ndarray]:
+    """`Problem.target` and `Problem.weight` as host arrays, padded to ``points``.
+
+    Raises:
+        ValueError: every weighted measurement is zero (E of Eq. 6 is undefined).
+    """
     target, weight = targets(data)
     denominator = np.sum(weight * target**2)
     if not denominator > 0:
         raise ValueError(f"{data.name}: every weighted measurement is zero; nothing to fit")
-    return Problem(geometry, jnp.asarray(pad(target, points, 0.0), dtype),
-                   jnp.asarray(pad(weight / denominator, points, 0.0), dtype), model)
+    return pad(target, points, 0.0), pad(weight / denominator, points, 0.0)
 
 
 def residuals(params, prob: Problem) -> jax.Array:
