@@ -33,6 +33,7 @@ import numpy as np
 
 from brdfjax.data.measurements import Measurements
 from brdfjax.fitting.bounds import Bounds, default_bounds, from_unit
+from brdfjax.fitting.fit import FitResult, split
 from brdfjax.fitting.objective import prepare
 from brdfjax.models import Model, get
 from brdfjax.models.paper import FIVE, evaluate_projected
@@ -132,8 +133,6 @@ def training_setup(data: Measurements, fit, bounds: Bounds | None = None,
     Returns:
         The `Posterior` of the training points and the starting parameters (P,).
     """
-    from brdfjax.fitting.fit import FitResult, split
-
     if isinstance(fit, FitResult):
         bounds, model = fit.bounds, fit.model
         validate_incidences_deg = fit.validation_incidences

@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from brdfjax.fitting.bounds import Bounds, default_bounds, from_unit
+from brdfjax.fitting.fit import FitResult
 from brdfjax.fitting.objective import projected
 from brdfjax.models import Model
 from brdfjax.models.paper import FIVE
@@ -46,8 +47,6 @@ class UncertaintyWarning(UserWarning):
 def fitted_of(fit) -> dict:
     """``fitted`` and ``fitted_loss`` of an `UncertaintyResult` computed from ``fit``: the
     fit's parameters and loss when it is a `brdfjax.fitting.fit.FitResult`, else nothing."""
-    from brdfjax.fitting.fit import FitResult
-
     if not isinstance(fit, FitResult):
         return {}
     return {"fitted": np.asarray(fit.vector, dtype=float), "fitted_loss": fit.loss}
