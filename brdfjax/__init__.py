@@ -23,8 +23,8 @@ else:
     os.environ.setdefault("JAX_ENABLE_X64", "1")
 
 # XLA compiles brdfjax's code with LLVM at -O2 instead of its default -O3: a new process
-# spends most of its first fit compiling, and -O2 compiles the genetic search in 2.3 s
-# instead of 3.8 s and the first `brdfjax fit` in 12 s instead of 14.6 s, while the
+# spends most of its first fit compiling, and at -O2 the genetic search compiles in 2.3 s
+# instead of 3.8 s and the first `brdfjax fit` takes 11.1 s instead of 13.1 s, while the
 # compiled code runs as fast (BENCHMARKS.md, section startup). E is unchanged; parameters
 # in flat directions move at the 1e-8 level (another order of summation). A level given
 # in XLA_FLAGS is kept; like 64-bit mode, this acts only before JAX starts its backend.
