@@ -25,7 +25,7 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-from brdfjax.models.base import Model, Parameter, broadcast_angles
+from brdfjax.models.base import Parameter, ScaledShape, broadcast_angles
 
 
 class ProjectedGeometry(NamedTuple):
@@ -48,7 +48,7 @@ def power(distance2, g):
 
 
 @dataclass(frozen=True)
-class Abg(Model):
+class Abg(ScaledShape):
     """The ABg model, peaked at the specular direction."""
 
     name = "abg"
@@ -73,17 +73,5 @@ class Abg(Model):
         distance2 = (sin_r * jnp.cos(phi_r) + jnp.sin(theta_i)) ** 2 + (sin_r * jnp.sin(phi_r)) ** 2
         return ProjectedGeometry(distance2, jnp.cos(theta_r))
 
-    def _shape(self, b, g, geometry):
-        return 1.0 / (b + power(geometry.distance2, g))
-
-    def evaluate(self, params, geometry):
-        return params[0] * self._shape(params[1], params[2], geometry)
-
-    def columns(self, params, geometry, bounds):
-        return [self._shape(params[1], params[2], geometry)], [1.0]
-
-    def coefficient_bounds(self, bounds):
-        return bounds.lower[:1], bounds.upper[:1]
-
-    def assemble(self, coefficients, params, bounds):
-        return params.at[0].set(coefficients[0])
+    def shape(self, params, geometry):
+        return 1.0 / (params[1] + power(geometry.distance2, params[2]))

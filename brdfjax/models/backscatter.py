@@ -20,7 +20,7 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-from brdfjax.models.base import Model, Parameter, broadcast_angles
+from brdfjax.models.base import Parameter, ScaledShape, phase_terms
 
 
 class PhaseGeometry(NamedTuple):
@@ -39,17 +39,10 @@ class PhaseGeometry(NamedTuple):
 
 def phase_geometry(theta_i, theta_r, phi_r) -> PhaseGeometry:
     """``c^2`` and ``1 - c^2`` of the clipped phase cosine, for angles in radians."""
-    theta_i, theta_r, phi_r = broadcast_angles(theta_i, theta_r, phi_r)
-    cos_i, sin_i = jnp.cos(theta_i), jnp.sin(theta_i)
-    cos_r, sin_r = jnp.cos(theta_r), jnp.sin(theta_r)
-    cos_p, sin_p = jnp.cos(phi_r), jnp.sin(phi_r)
-    cos_phase = cos_i * cos_r + sin_i * sin_r * cos_p
-    # |w_i x w_r|^2, w_i = (sin ti, 0, cos ti), w_r = (sin tr cos pr, sin tr sin pr, cos tr)
-    cross2 = ((cos_i * sin_r * sin_p) ** 2 + (cos_i * sin_r * cos_p - sin_i * cos_r) ** 2
-              + (sin_i * sin_r * sin_p) ** 2)
-    forward = cos_phase > 0
-    return PhaseGeometry(jnp.where(forward, cos_phase, 0.0) ** 2,
-                         jnp.where(forward, jnp.minimum(cross2, 1.0), 1.0), cos_r)
+    terms = phase_terms(theta_i, theta_r, phi_r)
+    forward = terms.cos_phase > 0
+    return PhaseGeometry(jnp.where(forward, terms.cos_phase, 0.0) ** 2,
+                         jnp.where(forward, jnp.minimum(terms.cross2, 1.0), 1.0), terms.cos_r)
 
 
 def ggx_distribution(beta, geometry: PhaseGeometry):
@@ -59,7 +52,7 @@ def ggx_distribution(beta, geometry: PhaseGeometry):
 
 
 @dataclass(frozen=True)
-class Backscatter(Model):
+class Backscatter(ScaledShape):
     """A GGX lobe in the phase angle, peaked at the source direction."""
 
     name = "backscatter"
@@ -80,14 +73,5 @@ class Backscatter(Model):
     def geometry(self, theta_i, theta_r, phi_r, in_plane):
         return phase_geometry(theta_i, theta_r, phi_r)
 
-    def evaluate(self, params, geometry):
-        return params[0] * ggx_distribution(params[1], geometry)
-
-    def columns(self, params, geometry, bounds):
-        return [ggx_distribution(params[1], geometry)], [1.0]
-
-    def coefficient_bounds(self, bounds):
-        return bounds.lower[:1], bounds.upper[:1]
-
-    def assemble(self, coefficients, params, bounds):
-        return params.at[0].set(coefficients[0])
+    def shape(self, params, geometry):
+        return ggx_distribution(params[1], geometry)

@@ -202,6 +202,28 @@ class Model:
         return dataclasses.replace(self, constants=type(self.constants)(*constants))
 
 
+class ScaledShape(Model):
+    """A model that is one weight times a shape, ``f_r = w shape(other parameters)``, its
+    weight the first parameter and its only linear coefficient (Lambert, ABg, the
+    back-scatter lobe). A subclass gives `shape`; the linear split follows from it."""
+
+    def shape(self, params, geometry) -> jax.Array:
+        """f_r of unit weight at the other parameters of ``params`` (P,)."""
+        raise NotImplementedError
+
+    def evaluate(self, params, geometry):
+        return params[0] * self.shape(params, geometry)
+
+    def columns(self, params, geometry, bounds):
+        return [self.shape(params, geometry)], [1.0]
+
+    def coefficient_bounds(self, bounds):
+        return bounds.lower[:1], bounds.upper[:1]
+
+    def assemble(self, coefficients, params, bounds):
+        return params.at[0].set(coefficients[0])
+
+
 def broadcast_angles(theta_i, theta_r, phi_r):
     """The three angle arrays broadcast to one shape, in one floating dtype (float64 unless
     all are float32)."""
@@ -239,3 +261,37 @@ def safe_sqrt(x):
     """sqrt(x) with a zero (not infinite) derivative at x = 0."""
     positive = x > 0
     return jnp.where(positive, jnp.sqrt(jnp.where(positive, x, 1.0)), 0.0)
+
+
+class PhaseTerms(NamedTuple):
+    """The trigonometry of two directions ``w_i = (sin ti, 0, cos ti)`` and
+    ``w_r = (sin tr cos pr, sin tr sin pr, cos tr)`` and of the phase angle g between them.
+
+    Attributes:
+        cos_i, sin_i, cos_r, sin_r, cos_p, sin_p: of ti, tr and pr.
+        cos_phase: ``cos g = w_i . w_r``.
+        cross2: ``|w_i x w_r|^2 = sin^2 g``, a sum of squares: exact near g = 0, where
+            ``1 - cos^2 g`` cancels.
+    """
+
+    cos_i: jax.Array
+    sin_i: jax.Array
+    cos_r: jax.Array
+    sin_r: jax.Array
+    cos_p: jax.Array
+    sin_p: jax.Array
+    cos_phase: jax.Array
+    cross2: jax.Array
+
+
+def phase_terms(theta_i, theta_r, phi_r) -> PhaseTerms:
+    """`PhaseTerms` at broadcastable angles in radians (models peaked at the source: the
+    back-scatter lobe, Ross-Li's kernels)."""
+    theta_i, theta_r, phi_r = broadcast_angles(theta_i, theta_r, phi_r)
+    cos_i, sin_i = jnp.cos(theta_i), jnp.sin(theta_i)
+    cos_r, sin_r = jnp.cos(theta_r), jnp.sin(theta_r)
+    cos_p, sin_p = jnp.cos(phi_r), jnp.sin(phi_r)
+    cos_phase = cos_i * cos_r + sin_i * sin_r * cos_p
+    cross2 = ((cos_i * sin_r * sin_p) ** 2 + (cos_i * sin_r * cos_p - sin_i * cos_r) ** 2
+              + (sin_i * sin_r * sin_p) ** 2)
+    return PhaseTerms(cos_i, sin_i, cos_r, sin_r, cos_p, sin_p, cos_phase, cross2)

@@ -8,7 +8,7 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-from brdfjax.models.base import Model, Parameter, broadcast_angles
+from brdfjax.models.base import Parameter, ScaledShape, broadcast_angles
 
 
 class LambertGeometry(NamedTuple):
@@ -18,7 +18,7 @@ class LambertGeometry(NamedTuple):
 
 
 @dataclass(frozen=True)
-class Lambert(Model):
+class Lambert(ScaledShape):
     """A perfectly diffuse surface."""
 
     name = "lambert"
@@ -34,14 +34,5 @@ class Lambert(Model):
         theta_i, theta_r, phi_r = broadcast_angles(theta_i, theta_r, phi_r)
         return LambertGeometry(jnp.cos(theta_r))
 
-    def evaluate(self, params, geometry):
-        return params[0] * jnp.ones_like(geometry.cos_theta_r)
-
-    def columns(self, params, geometry, bounds):
-        return [jnp.ones_like(geometry.cos_theta_r)], [1.0]
-
-    def coefficient_bounds(self, bounds):
-        return bounds.lower, bounds.upper
-
-    def assemble(self, coefficients, params, bounds):
-        return coefficients
+    def shape(self, params, geometry):
+        return jnp.ones_like(geometry.cos_theta_r)

@@ -34,7 +34,7 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-from brdfjax.models.base import Model, Parameter, broadcast_angles, safe_sqrt
+from brdfjax.models.base import Model, Parameter, phase_terms, safe_sqrt
 
 GRAZING_COSINE = 1e-9
 HEIGHT_RATIO = 2.0  # h/b of MCD43 (LiSparse-R); b/r = 1
@@ -56,13 +56,8 @@ class KernelGeometry(NamedTuple):
 
 def kernels(theta_i, theta_r, phi_r) -> KernelGeometry:
     """K_vol and K_geo (module docstring) at broadcastable angles in radians."""
-    theta_i, theta_r, phi_r = broadcast_angles(theta_i, theta_r, phi_r)
-    cos_i, sin_i = jnp.cos(theta_i), jnp.sin(theta_i)
-    cos_r, sin_r = jnp.cos(theta_r), jnp.sin(theta_r)
-    cos_p, sin_p = jnp.cos(phi_r), jnp.sin(phi_r)
-    cos_xi = cos_i * cos_r + sin_i * sin_r * cos_p
-    cross2 = ((cos_i * sin_r * sin_p) ** 2 + (cos_i * sin_r * cos_p - sin_i * cos_r) ** 2
-              + (sin_i * sin_r * sin_p) ** 2)
+    cos_i, sin_i, cos_r, sin_r, cos_p, sin_p, cos_xi, cross2 = phase_terms(theta_i, theta_r,
+                                                                           phi_r)
     xi = jnp.arctan2(safe_sqrt(cross2), cos_xi)
     sum_cos = jnp.maximum(cos_i + cos_r, GRAZING_COSINE)
     volume = ((jnp.pi / 2 - xi) * cos_xi + jnp.sin(xi)) / sum_cos - jnp.pi / 4
