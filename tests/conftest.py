@@ -31,3 +31,23 @@ def _stages_off_after_each_test(monkeypatch):
     from brdfjax import cache
 
     monkeypatch.setattr(cache, "_directory", cache._directory)
+
+
+@pytest.fixture(scope="module")
+def environment(tmp_path_factory):
+    """Environment of command-line runs in subprocesses: one CPU device, this checkout, and
+    one compilation cache per test module."""
+    return {**os.environ, "BRDFJAX_CACHE": str(tmp_path_factory.mktemp("jax-cache")),
+            "PYTHONPATH": str(REPO), "XLA_FLAGS": "--xla_force_host_platform_device_count=1"}
+
+
+@pytest.fixture
+def dask_scheduler(environment, monkeypatch):
+    """The address of a real local Dask cluster (2 worker processes, one thread each) whose
+    workers inherit `environment`."""
+    distributed = pytest.importorskip("distributed")
+    for name, value in environment.items():  # the workers inherit it when spawned
+        monkeypatch.setenv(name, value)
+    with distributed.LocalCluster(n_workers=2, processes=True, threads_per_worker=1,
+                                  host="127.0.0.1", dashboard_address=None) as cluster:
+        yield cluster.scheduler_address

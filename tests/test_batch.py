@@ -7,7 +7,6 @@ compilation cache (``BRDFJAX_CACHE``), so only the first run of each shape compi
 
 import csv
 import json
-import os
 import signal
 import subprocess
 import sys
@@ -16,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import DATA, REPO
+from conftest import DATA
 
 from brdfjax.commands.batch import expand
 from brdfjax.data.formats import load, save
@@ -227,14 +226,6 @@ def catalogue(tmp_path_factory):
     return folder
 
 
-@pytest.fixture(scope="module")
-def environment(tmp_path_factory):
-    """Environment of the command-line runs: one CPU device, one shared compilation cache."""
-    cache = tmp_path_factory.mktemp("jax-cache")
-    return {**os.environ, "BRDFJAX_CACHE": str(cache), "PYTHONPATH": str(REPO),
-            "XLA_FLAGS": "--xla_force_host_platform_device_count=1"}
-
-
 def batch_command(catalogue, out, *extra):
     return [sys.executable, "-m", "brdfjax.cli", "batch", str(catalogue), "--out", str(out),
             *CLI_SMALL, *extra]
@@ -330,18 +321,12 @@ def test_split_over_two_devices_gives_the_same_results(reference, catalogue, env
 
 
 @pytest.mark.timeout(300)
-def test_dask_cluster_gives_the_local_results(reference, catalogue, environment, tmp_path,
-                                              monkeypatch, capsys):
-    distributed = pytest.importorskip("distributed")
+def test_dask_cluster_gives_the_local_results(reference, catalogue, dask_scheduler, tmp_path,
+                                              capsys):
     from brdfjax.cli import main
 
-    for name, value in environment.items():  # the workers inherit it when spawned
-        monkeypatch.setenv(name, value)
     out = tmp_path / "results.csv"
-    with distributed.LocalCluster(n_workers=2, processes=True, threads_per_worker=1,
-                                  host="127.0.0.1", dashboard_address=None) as cluster:
-        code = main(batch_command(catalogue, out, "--scheduler",
-                                  cluster.scheduler_address)[3:])
+    code = main(batch_command(catalogue, out, "--scheduler", dask_scheduler)[3:])
     assert code == 1 and "brdf is nan" in capsys.readouterr().err
     assert out.read_text() == reference[0]
 

@@ -1,7 +1,6 @@
 """``brdfjax batch CUBE.h5``: real HDF5 files in and out, single-fit results, a clear error
 for a bad cube, a run killed with SIGKILL and resumed, other options refused, Dask."""
 
-import os
 import signal
 import subprocess
 import sys
@@ -9,7 +8,6 @@ import time
 
 import numpy as np
 import pytest
-from conftest import REPO
 
 from brdfjax.data.formats.cube import Cube, write_cube
 from brdfjax.fitting.fit import fit
@@ -51,12 +49,6 @@ def cube(tmp_path_factory):
     brdf_values[7] = np.nan
     write_cube(path, *geometry(), brdf_values, sample=[f"pixel {k}" for k in range(COUNT)])
     return path
-
-
-@pytest.fixture(scope="module")
-def environment(tmp_path_factory):
-    return {**os.environ, "BRDFJAX_CACHE": str(tmp_path_factory.mktemp("jax-cache")),
-            "PYTHONPATH": str(REPO), "XLA_FLAGS": "--xla_force_host_platform_device_count=1"}
 
 
 def command(cube, out, *extra):
@@ -185,17 +177,11 @@ def test_per_sample_geometry_reads_each_row(tmp_path):
 
 
 @pytest.mark.timeout(600)
-def test_dask_fits_the_cube_chunk_by_chunk(cube, reference, environment, tmp_path,
-                                           monkeypatch, capsys):
-    distributed = pytest.importorskip("distributed")
+def test_dask_fits_the_cube_chunk_by_chunk(cube, reference, dask_scheduler, tmp_path, capsys):
     from brdfjax.cli import main
 
-    for name, value in environment.items():  # the workers inherit it when spawned
-        monkeypatch.setenv(name, value)
     out = tmp_path / "results.h5"
-    with distributed.LocalCluster(n_workers=2, processes=True, threads_per_worker=1,
-                                  host="127.0.0.1", dashboard_address=None) as cluster:
-        code = main(command(cube, out, "--scheduler", cluster.scheduler_address)[3:])
+    code = main(command(cube, out, "--scheduler", dask_scheduler)[3:])
     assert code == 1 and f"{COUNT - 1} of {COUNT} fitted" in capsys.readouterr().err
     final, whole = read(out), read(reference[0])
     for name in final:
