@@ -176,6 +176,33 @@ def test_per_sample_geometry_reads_each_row(tmp_path):
     assert first.name == "rows.h5[0]"
 
 
+def test_a_netcdf4_cube_reads_as_its_hdf5_twin(tmp_path):
+    """The same schema written as NetCDF-4 by the NetCDF library itself (netCDF4, on
+    libnetcdf: dimensions, a fill value for missing readings, variable-length strings)
+    reads into the same samples as the HDF5 cube of the same arrays."""
+    netcdf = pytest.importorskip("netCDF4")
+    brdf_values = values(3)
+    brdf_values[1, 4] = np.nan
+    names = ["alpha", "beta", "gamma"]
+    hdf5, nc = tmp_path / "twin.h5", tmp_path / "twin.nc"
+    write_cube(hdf5, *geometry(), brdf_values, sample=names)
+    with netcdf.Dataset(nc, "w", format="NETCDF4") as out:
+        out.createDimension("sample", 3)
+        out.createDimension("point", 48)
+        for name, angles in zip(("theta_i", "theta_r", "phi_r"), geometry()):
+            out.createVariable(name, "f8", ("point",))[:] = angles
+        brdf_var = out.createVariable("brdf", "f8", ("sample", "point"), fill_value=np.nan)
+        brdf_var[:] = np.ma.masked_invalid(brdf_values)
+        out.createVariable("sample", str, ("sample",))[:] = np.array(names, dtype=object)
+    with Cube(hdf5) as first, Cube(nc) as second:
+        assert second.shares_geometry and second.count == 3
+        for one, other in zip(first.read([0, 1, 2]), second.read([0, 1, 2])):
+            assert other.name == one.name
+            for field in ("theta_i", "theta_r", "phi_r", "brdf"):
+                np.testing.assert_array_equal(getattr(other, field), getattr(one, field))
+        assert [len(x) for x in second.read([0, 1])] == [48, 47]  # the missing one dropped
+
+
 @pytest.mark.timeout(600)
 def test_dask_fits_the_cube_chunk_by_chunk(cube, reference, dask_scheduler, tmp_path, capsys):
     from brdfjax.cli import main
