@@ -13,6 +13,7 @@ import sys
 import time
 from pathlib import Path
 
+import jax
 import numpy as np
 import pytest
 from conftest import DATA
@@ -84,6 +85,28 @@ def test_batched_fits_equal_single_fits_and_a_nan_sample_fails_alone(mixed_batch
         np.testing.assert_allclose(batched.vector, single.vector, rtol=1e-6)
         assert batched.error_by_incidence.keys() == single.error_by_incidence.keys()
         assert len(batched.residuals) == len(data)  # no padding leaks into the result
+
+
+def test_vmap_lanes_end_where_the_per_sample_path_ends(mixed_batch, monkeypatch):
+    """The accelerator's lanes, run here on the CPU: every sample and each of its LM starts
+    side by side, starts still running after `LANE_STEPS` resumed in a second batch. With
+    the cap lowered to 5 steps nearly every start is resumed; each converged sample still
+    ends at the per-sample path's E (1e-9), and each sample's status is the same (a start
+    stopped at the step cap stops there on both paths, by different routes)."""
+    from brdfjax.fitting import batch
+
+    samples, mapped = mixed_batch
+    monkeypatch.setattr(batch, "LANE_STEPS", 5)
+    side = fit_batch(samples, lanes="vmap", **SMALL)
+    assert [r.status for r in side] == [r.status for r in mapped]
+    for one, other in zip(side, mapped):
+        if other.status == "converged":
+            assert one.error == pytest.approx(other.error, rel=1e-9)
+            np.testing.assert_allclose(one.vector, other.vector, rtol=1e-5)
+            assert one.lm_steps.max() > 40 + 5  # resumed past the lowered cap
+    assert batch.lane_choice("auto", jax.devices()) == "map"  # a CPU maps
+    with pytest.raises(ValueError, match="lanes 'gpu'"):
+        fit_batch(samples, lanes="gpu")
 
 
 def modis_like(seed: int, params, own_geometry: bool) -> Measurements:

@@ -59,6 +59,10 @@ def register(subparsers) -> None:
                         "instead of fitting here")
     p.add_argument("--chunk-size", type=int, default=64,
                    help="files per compiled fit and per write (default 64)")
+    p.add_argument("--lanes", choices=("auto", "map", "vmap"), default="auto",
+                   help="map: each device fits a chunk's samples one after another; vmap: "
+                        "side by side, slow ones finished in a second batch; auto (default): "
+                        "map on a CPU, vmap on a GPU or TPU")
     p.add_argument("--uncertainty", choices=("laplace",),
                    help="add Laplace standard deviations (std_kb, ...) to every row")
     p.add_argument("--seed", type=int, default=0, help="the seed of every fit (default 0)")
@@ -150,9 +154,10 @@ def result_options(args, model) -> dict:
 
     The search settings are resolved to the values the fit uses (an option given equal to
     its default is the same run as one left out), and the bounds to the whole box of the
-    model (so ``--bound b=-150:80`` equals the default box it spells out). ``--chunk-size``
-    and ``--scheduler`` are left out: they change where and how samples are grouped, not
-    their results (`brdfjax.fitting.batch.fit_batch`).
+    model (so ``--bound b=-150:80`` equals the default box it spells out). ``--chunk-size``,
+    ``--scheduler`` and ``--lanes`` are left out: they change where and how samples are
+    grouped and run, not their results (`brdfjax.fitting.batch.fit_batch`; the lanes end
+    converged fits at the same E to 1e-9, tested).
     """
     from brdfjax.commands.fitting import parse_bounds
     from brdfjax.fitting.batch import FIT_DEFAULTS
@@ -168,6 +173,16 @@ def result_options(args, model) -> dict:
             "reader": {k: (str(v) if k == "blank" else v)
                        for k, v in reader_options(args).items()},
             "wavelength": args.wavelength}
+
+
+def fit_options(args, model) -> dict:
+    """The keyword arguments of `brdfjax.fitting.cluster.fit_chunk` for every chunk."""
+    from brdfjax.commands.fitting import parse_bounds
+
+    return {"seed": args.seed, "ranges": parse_bounds(args.bound), "model": model.name,
+            "chunk_size": args.chunk_size, "uncertainty": args.uncertainty,
+            "lanes": args.lanes,
+            **{k: getattr(args, k) for k in SEARCH_OPTIONS if getattr(args, k) is not None}}
 
 
 def options_path(out) -> Path:
@@ -292,7 +307,6 @@ def row(key: str, result: dict, columns, model: str) -> dict:
 def run_batch(args) -> int:
     from tqdm import tqdm
 
-    from brdfjax.commands.fitting import parse_bounds
     from brdfjax.models import get
 
     check_writable({"--out": args.out}, {"--json": args.json})
@@ -326,9 +340,7 @@ def run_batch(args) -> int:
     settings = result_options(args, model)
     check_options(args.out, rows, settings)
     pending = [f for f in files if f not in rows]
-    options = {"seed": args.seed, "ranges": parse_bounds(args.bound), "model": model.name,
-               "chunk_size": args.chunk_size, "uncertainty": args.uncertainty,
-               **{k: getattr(args, k) for k in SEARCH_OPTIONS if getattr(args, k) is not None}}
+    options = fit_options(args, model)
     if args.json:
         Path(args.json).mkdir(parents=True, exist_ok=True)
     if rows:
@@ -378,7 +390,6 @@ def run_cube(args) -> int:
     import numpy as np
     from tqdm import tqdm
 
-    from brdfjax.commands.fitting import parse_bounds
     from brdfjax.data.formats.cube import Cube, CubeResults
     from brdfjax.models import get
 
@@ -420,11 +431,7 @@ def run_cube(args) -> int:
                   + (f"fitting the other {pending.size}" if pending.size
                      else "nothing left to fit"), file=sys.stderr)
         results.start()
-        options = {"seed": args.seed, "ranges": parse_bounds(args.bound),
-                   "model": model.name, "chunk_size": args.chunk_size,
-                   "uncertainty": args.uncertainty,
-                   **{k: getattr(args, k) for k in SEARCH_OPTIONS
-                      if getattr(args, k) is not None}}
+        options = fit_options(args, model)
         blocks = [pending[i:i + args.chunk_size]
                   for i in range(0, pending.size, args.chunk_size)]
         if devices and blocks:

@@ -23,13 +23,27 @@ distinct good members), but as one compiled call per chunk of samples:
    batched fit follows the same search as the single fit of the same sample and ends at the
    same E (to 1e-9 relative, tested): both pad points to the same bucket, so they run the
    same arithmetic, except for a sample padded further to a larger sample of its chunk.
-5. Each step runs its samples ``search_batch`` (genetic search) or ``polish_batch``
-   (Levenberg-Marquardt) at a time side by side under ``vmap``, such groups one after
-   another under ``lax.map`` (`across_samples`); ``None`` vmaps the whole chunk. A vmapped
-   loop runs as long as its slowest lane (an LM that needs 700 steps holds up every sample
-   beside it; 64 starts: 613 ms vmapped, 242 ms looped), and on a CPU even the GA was slower vmapped
-   over many samples than mapped; the defaults are the fastest measured on a 2-core CPU
-   (``BENCHMARKS.md``, section batch). On a GPU, try ``None`` for both.
+5. Lanes: how a chunk's samples share a device (``lanes``, chosen by backend).
+   - ``map`` (the default on a CPU): each step runs its samples ``search_batch`` (genetic
+     search) or ``polish_batch`` (Levenberg-Marquardt) at a time side by side under
+     ``vmap``, such groups one after another under ``lax.map`` (`across_samples`); ``None``
+     vmaps the whole chunk. A vmapped loop runs as long as its slowest lane (an LM that
+     needs 700 steps holds up every sample beside it; 64 starts: 613 ms vmapped, 242 ms
+     looped), and on a CPU, where a lane costs as much as a sample, even the GA was slower
+     vmapped over many samples than mapped; the defaults are the fastest measured on a
+     2-core CPU (``BENCHMARKS.md``, section batch).
+   - ``vmap`` (the default on an accelerator, where lanes run at once and each loop step
+     is a kernel launch): every sample of the chunk side by side in both stages, and each
+     sample's LM starts side by side too (`brdfjax.fitting.polish.polish`'s
+     ``side_by_side``); a finished lane is masked (``vmap`` of a ``while_loop`` keeps its
+     state) until the slowest is done. So that a few slow lanes do not hold all the others,
+     LM's convergence round stops at `LANE_STEPS` steps (the longest start of a 64-point
+     cube sample took a median of 52 LM steps, screening's 40 included, 90 at the 90th
+     percentile: ``BENCHMARKS.md``, section lanes-cpu), and the
+     starts still running then continue in a second, small batch of their own from where
+     they stopped, for the rest of ``max_steps`` (`_resume_slow`). A start so resumed
+     restarts LM's damping, so it ends at the same minimum by a slightly different path:
+     E equal to the ``map`` path's to 1e-9 (tested), not bit for bit.
 6. The sample axis is split over the local devices: each device gets a contiguous block
    of the chunk's samples, placed on it (``jax.device_put``) and fitted by the same
    compiled function, dispatched to all devices before waiting on any, so the devices run
@@ -74,7 +88,7 @@ from brdfjax.fitting.objective import (
     padded_scene,
     prepare,
 )
-from brdfjax.fitting.polish import PolishResult, polish_population
+from brdfjax.fitting.polish import PolishResult, polish_population, resume
 from brdfjax.models import Model, get
 from brdfjax.models.paper import evaluate_projected
 
@@ -87,6 +101,10 @@ FIT_DEFAULTS = {name: inspect.signature(fit).parameters[name].default
 # fastest on a 2-core CPU among 1, 4, 16 and the whole chunk (BENCHMARKS.md, section batch).
 SEARCH_BATCH = 1
 POLISH_BATCH = 1
+# LM convergence-round steps of the first batch on the ``vmap`` lanes; starts still running
+# then continue in a second batch (`_resume_slow`).
+LANE_STEPS = 64
+LANES = ("auto", "map", "vmap")
 # Samples per device below which a chunk uses fewer devices (`_run_chunk`): 8 warm fits of
 # 120-716 points take 0.1-0.2 s on one CPU device, about what loading one compiled shape for
 # a second device from the caches takes, while compiling it takes 10-30 s.
@@ -96,6 +114,7 @@ SAMPLES_PER_DEVICE = 8
 def fit_batch(samples: Sequence[Measurements], *, model: str | Model | None = None,
               seed: int | Sequence[int] = 0, bounds: Bounds | None = None,
               chunk_size: int = 256,
+              lanes: str = "auto",
               search_batch: int | None = SEARCH_BATCH, polish_batch: int | None = POLISH_BATCH,
               devices=None, **options) -> list[FitResult]:
     """Fit a model to every sample of a batch, one compiled call per chunk.
@@ -115,8 +134,13 @@ def fit_batch(samples: Sequence[Measurements], *, model: str | Model | None = No
         chunk_size: at most this many samples per compiled call; bounds the memory,
             which grows with it where samples run side by side (``search_batch`` or
             ``polish_batch`` None or large).
-        search_batch, polish_batch: samples side by side under ``vmap`` in the genetic
-            search and in the LM polish (`across_samples`); None for the whole chunk.
+        lanes: ``map`` (samples one after another, in groups of ``search_batch`` and
+            ``polish_batch``), ``vmap`` (a chunk's samples and their LM starts side by
+            side, slow starts resumed in a second batch), or ``auto``: ``map`` on a CPU,
+            ``vmap`` on an accelerator (the module docstring, item 5).
+        search_batch, polish_batch: with ``lanes`` ``map``, samples side by side under
+            ``vmap`` in the genetic search and in the LM polish (`across_samples`); None
+            for the whole chunk.
         devices: the devices to split each chunk over (default: ``jax.devices()``).
         **options: ``starts``, ``population_size``, ``max_generations``, ``max_steps``,
             ``config``, ``constants``: as in `brdfjax.fitting.fit.fit`, with its defaults
@@ -137,7 +161,13 @@ def fit_batch(samples: Sequence[Measurements], *, model: str | Model | None = No
     bounds = default_bounds(model) if bounds is None else bounds
     check_bounds(bounds, model)
     devices = list(devices or jax.devices())
-    settings = {**options, "search_batch": search_batch, "polish_batch": polish_batch}
+    side_by_side = lane_choice(lanes, devices) == "vmap"
+    settings = {**options, "search_batch": None if side_by_side else search_batch,
+                "polish_batch": None if side_by_side else polish_batch,
+                "side_by_side": side_by_side}
+    resumed_steps = 0  # the convergence round's steps left to the slow lanes' second batch
+    if side_by_side and options["max_steps"] > LANE_STEPS:
+        settings["max_steps"], resumed_steps = LANE_STEPS, options["max_steps"] - LANE_STEPS
     results: list[FitResult | None] = [None] * len(samples)
     # Stable sort by geometry, so that samples sharing one land in the same chunks.
     keys = [_geometry_key(data) for data in samples]
@@ -164,6 +194,8 @@ def fit_batch(samples: Sequence[Measurements], *, model: str | Model | None = No
         tic = time.perf_counter()
         (searched, polished), padded = _run_chunk(list(problems.values()), seeds[chunk],
                                                   bounds, config, devices, chunk_size, settings)
+        if resumed_steps and model.searched_size:
+            polished = _resume_slow(polished, padded, bounds, devices[0], resumed_steps)
         searched, polished = _lanes(searched), _lanes(polished)
         summaries = [polish_summary(lane) for lane in polished]
         fitted, units = _fitted([best for best, *_ in summaries], padded, bounds)
@@ -174,6 +206,54 @@ def fit_batch(samples: Sequence[Measurements], *, model: str | Model | None = No
                 units[lane], options["population_size"], share, options["max_steps"], bounds,
                 model)
     return results
+
+
+def lane_choice(lanes: str, devices) -> str:
+    """``map`` or ``vmap``: ``lanes`` itself, or for ``auto`` ``map`` on a CPU and ``vmap``
+    on an accelerator."""
+    if lanes not in LANES:
+        raise ValueError(f"lanes {lanes!r}: give one of {', '.join(LANES)}")
+    if lanes == "auto":
+        return "map" if devices[0].platform == "cpu" else "vmap"
+    return lanes
+
+
+def _resume_slow(polished: PolishResult, chunk: Problem, bounds: Bounds, device,
+                 steps: int) -> PolishResult:
+    """The ``vmap`` lanes' second batch: every start of ``polished`` (host arrays,
+    (samples, starts, ...)) that stopped at `LANE_STEPS` without converging, run on for up
+    to ``steps`` more LM steps side by side, its results put in its place (steps and
+    evaluations added). ``chunk``: the padded chunk of `_run_chunk`."""
+    samples, starts = np.nonzero(~polished.success & np.isfinite(polished.errors))
+    if not samples.size:
+        return polished
+    lanes = 1 << (samples.size - 1).bit_length()  # few compiled sizes
+    pick = np.concatenate([samples, np.repeat(samples[:1], lanes - samples.size)])
+    start = np.concatenate([starts, np.repeat(starts[:1], lanes - samples.size)])
+    shared = chunk.scene.cos_theta_r.ndim == 1
+    scene = chunk.scene if shared else jax.tree.map(lambda x: x[pick], chunk.scene)
+    arrays = jax.device_put((polished.free[pick, start], scene, chunk.target[pick],
+                             chunk.weight[pick], bounds), device)
+    resumed = jax.tree.map(lambda x: np.asarray(x)[:samples.size],
+                           _resumed_lanes(*arrays, chunk.model, max_steps=steps))
+    merged = {name: np.array(getattr(polished, name)) for name in polished._fields}
+    for name in ("free", "params", "errors", "success"):  # one start per lane
+        merged[name][samples, starts] = getattr(resumed, name)[:, 0]
+    merged["steps"][samples, starts] += resumed.steps[:, 0]
+    np.add.at(merged["evaluations"], samples, resumed.evaluations)
+    return PolishResult(**merged)
+
+
+@stage(static_argnames=("max_steps",))
+def _resumed_lanes(free, scene, target, weight, bounds: Bounds, model: Model, *,
+                   max_steps: int) -> PolishResult:
+    """`brdfjax.fitting.polish.resume` of every lane (free (B, P), targets (B, N)) side by
+    side, on a shared scene (N,) or one per lane (B, N)."""
+
+    def one(scene, free, target, weight):
+        return resume(free, Problem(scene, target, weight, model), bounds, max_steps)
+
+    return across_samples(one, scene, (free, target, weight), None)
 
 
 def _geometry_key(data: Measurements) -> bytes:
@@ -305,12 +385,11 @@ def _block(values, number: int, size: int):
 
 
 @stage(static_argnames=("population_size", "max_generations", "starts", "max_steps",
-                        "search_batch", "polish_batch"))
+                        "search_batch", "polish_batch", "side_by_side"))
 def _fit_chunk(seeds, scene, target, weight, bounds: Bounds, config: EvolveConfig,
                model: Model, *, population_size: int, max_generations: int, starts: int,
-               max_steps: int,
-               search_batch: int | None,
-               polish_batch: int | None) -> tuple[EvolveResult, PolishResult]:
+               max_steps: int, search_batch: int | None, polish_batch: int | None,
+               side_by_side: bool) -> tuple[EvolveResult, PolishResult]:
     """The hybrid fit of a padded chunk in one compiled call.
 
     Args:
@@ -322,6 +401,7 @@ def _fit_chunk(seeds, scene, target, weight, bounds: Bounds, config: EvolveConfi
         population_size, max_generations, starts, max_steps: as in `fit`.
         search_batch, polish_batch: samples run side by side in each stage (see
             `across_samples`).
+        side_by_side: each sample's LM starts side by side (the ``vmap`` lanes).
 
     Returns:
         The batched `EvolveResult` and `PolishResult`, leading axis B.
@@ -338,7 +418,7 @@ def _fit_chunk(seeds, scene, target, weight, bounds: Bounds, config: EvolveConfi
 
     def refine(scene, population, target, weight):
         return polish_population(population, Problem(scene, target, weight, model), bounds,
-                                 starts=starts, max_steps=max_steps)
+                                 starts=starts, max_steps=max_steps, side_by_side=side_by_side)
 
     searched = across_samples(search, scene, (seeds, target, weight), search_batch)
     polished = across_samples(refine, scene, (searched.population, target, weight),

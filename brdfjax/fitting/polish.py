@@ -25,7 +25,8 @@ The starts run one after another (``lax.map``), not side by side (``vmap``): a v
 ``while_loop`` runs every lane as long as the slowest, and under ``vmap`` each of
 optimistix's branches (``lax.cond``) becomes a select that computes both sides. On a CPU
 16 starts of 40 steps took 12-23 ms mapped against 40 ms vmapped (exploratory timing,
-716 points).
+716 points). On an accelerator, where lanes run at once and each loop step is a kernel
+launch, ``side_by_side`` runs them under ``vmap`` (`brdfjax.fitting.batch`'s ``lanes``).
 
 Each step solves its P x P normal equations by Cholesky: with at most 5 parameters they
 are tiny, it is the fastest here, and unlike lineax's default QR it was not seen to
@@ -34,6 +35,7 @@ deadlock on several simulated CPU devices (QR and SVD sat at 0 % CPU for 19 minu
 
 from __future__ import annotations
 
+from functools import partial
 from typing import NamedTuple
 
 import jax
@@ -74,10 +76,13 @@ def _free_residuals(u, args):
     return residuals(from_free(u, bounds), prob)
 
 
-def _levenberg_marquardt(starts, skipped, prob, bounds, max_steps, scaled=True):
-    """LM from each row of ``starts`` (one after another), each with its own status.
+def _levenberg_marquardt(starts, skipped, prob, bounds, max_steps, scaled=True,
+                         side_by_side=False):
+    """LM from each row of ``starts`` (one after another, or ``side_by_side`` under ``vmap``),
+    each with its own status.
 
-    Rows where ``skipped`` is True are not run: they keep their start, E = inf and 0 steps.
+    Rows where ``skipped`` is True are not run: they keep their start, E = inf and 0 steps
+    (side by side they run and are then discarded: ``vmap`` makes the branch a select).
     ``scaled``: Marquardt's scaling (`brdfjax.fitting.marquardt`), else optimistix's LM.
     """
     import lineax as lx  # imported only when traced: a cached stage runs without them
@@ -102,8 +107,11 @@ def _levenberg_marquardt(starts, skipped, prob, bounds, max_steps, scaled=True):
         return (u0, from_free(u0, bounds), jnp.asarray(jnp.inf, u0.dtype), jnp.asarray(False),
                 jnp.asarray(0, jnp.result_type(int)))
 
-    u, params, errors, success, steps = jax.lax.map(
-        lambda args: jax.lax.cond(args[1], skip, run, args[0]), (starts, skipped))
+    def one(args):
+        return jax.lax.cond(args[1], skip, run, args[0])
+
+    u, params, errors, success, steps = (jax.vmap(one) if side_by_side else
+                                         partial(jax.lax.map, one))((starts, skipped))
     evaluations = (1 + prob.model.size) * jnp.sum(jnp.where(skipped, 0, steps + 1))
     return PolishResult(u, params, errors, success, steps, evaluations)
 
@@ -114,9 +122,9 @@ def repeats(starts) -> jax.Array:
     return jnp.any(jnp.tril(same, -1), axis=1)
 
 
-@stage(static_argnames=("max_steps", "screen_steps", "keep"))
+@stage(static_argnames=("max_steps", "screen_steps", "keep", "side_by_side"))
 def polish(starts, prob: Problem, bounds: Bounds, *, max_steps: int = 1000,
-           screen_steps: int = 40, keep: int = 3) -> PolishResult:
+           screen_steps: int = 40, keep: int = 3, side_by_side: bool = False) -> PolishResult:
     """Levenberg-Marquardt from many starts, screened, then run to convergence.
 
     Every start first takes up to ``screen_steps`` steps of optimistix's LM; only the
@@ -129,23 +137,29 @@ def polish(starts, prob: Problem, bounds: Bounds, *, max_steps: int = 1000,
         prob: the measurement set.
         bounds: the search box.
         max_steps, screen_steps, keep: step caps and how many starts survive screening.
+        side_by_side: run the starts under ``vmap`` instead of one after another (the
+            accelerator path of `brdfjax.fitting.batch`).
 
     Returns:
         A `PolishResult` for the surviving starts (steps counted over both rounds).
     """
     skipped = repeats(starts)
-    screened = _levenberg_marquardt(starts, skipped, prob, bounds, screen_steps, scaled=False)
+    screened = _levenberg_marquardt(starts, skipped, prob, bounds, screen_steps, scaled=False,
+                                    side_by_side=side_by_side)
     count = starts.shape[0]  # skipped repeats (E = inf) sort last
     best = jnp.argsort(screened.errors)[:keep] if keep < count else jnp.arange(count)
-    final = _levenberg_marquardt(screened.free[best], skipped[best], prob, bounds, max_steps)
+    final = _levenberg_marquardt(screened.free[best], skipped[best], prob, bounds, max_steps,
+                                 side_by_side=side_by_side)
     return final._replace(steps=final.steps + screened.steps[best],
                           evaluations=final.evaluations + screened.evaluations)
 
 
-@stage(static_argnames=("starts", "islands", "max_steps", "screen_steps", "keep"))
+@stage(static_argnames=("starts", "islands", "max_steps", "screen_steps", "keep",
+                        "side_by_side"))
 def polish_population(population, prob: Problem, bounds: Bounds, *, starts: int = 16,
                       islands: int = 8, separation: float = 0.1, max_steps: int = 1000,
-                      screen_steps: int = 40, keep: int = 3) -> PolishResult:
+                      screen_steps: int = 40, keep: int = 3,
+                      side_by_side: bool = False) -> PolishResult:
     """`polish` from distinct good members of each island of a `brdfjax.fitting.evolve` population.
 
     Each of the ``islands`` blocks of ``population`` (sorted best first within the block)
@@ -162,7 +176,15 @@ def polish_population(population, prob: Problem, bounds: Bounds, *, starts: int 
     chosen = jnp.concatenate([chosen.reshape(-1, dimensions),
                               prob.model.extra_starts(population[:1], bounds)])
     u0 = to_free(from_unit(chosen, bounds), bounds)
-    return polish(u0, prob, bounds, max_steps=max_steps, screen_steps=screen_steps, keep=keep)
+    return polish(u0, prob, bounds, max_steps=max_steps, screen_steps=screen_steps, keep=keep,
+                  side_by_side=side_by_side)
+
+
+def resume(free, prob: Problem, bounds: Bounds, max_steps: int) -> PolishResult:
+    """LM's convergence round (Marquardt's scaling) from one start ``free`` (P,) for up to
+    ``max_steps`` steps: a start `polish` stopped at a lower cap, run on (the accelerator
+    path's slow lanes, `brdfjax.fitting.batch`). Leading axis 1."""
+    return _levenberg_marquardt(free[None], jnp.zeros(1, bool), prob, bounds, max_steps)
 
 
 def distinct_members(z, count: int, separation: float = 0.02) -> jax.Array:
