@@ -185,6 +185,15 @@ def test_a_huge_brdf_is_reported_as_an_outlier(value, name):
         load(path, **options_for(name))
 
 
+@given(values=st.lists(st.floats(0, 1e300, allow_subnormal=True), min_size=1, max_size=40))
+def test_the_outlier_median_is_numpys(values):
+    """`validate`'s median (one partial sort, for speed) is ``np.median``, to the bit."""
+    from brdfjax.data.measurements import _median
+
+    values = np.array(values)
+    assert _median(values) == float(np.median(values))
+
+
 def real_files():
     for root in (REPO / "data" / "real", REPO.parent / "shared" / "data" / "real"):
         for path in sorted(root.rglob("*")):

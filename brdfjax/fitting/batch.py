@@ -180,7 +180,7 @@ def fit_batch(samples: Sequence[Measurements], *, model: str | Model | None = No
         for index in order[begin:begin + chunk_size]:
             data = samples[index]
             try:
-                validate(data, path=data.name)
+                validate(data, path=data.name, angles_checked=keys[index] in scenes)
                 points = bucket(len(data))
                 if keys[index] not in scenes:  # padded once, shared by its samples
                     scenes[keys[index]] = padded_scene(prepare(data, model), points)
@@ -292,8 +292,7 @@ def _sample_result(data, searched, polished, summary, fitted, unit, population_s
     message = {"max_steps": f"Levenberg-Marquardt stopped at its cap of {max_steps} steps "
                             "before meeting its tolerance",
                "failed": "no start reached a finite E"}.get(status, "")
-    empty = data.select(np.zeros(len(data), dtype=bool))
-    return fit_result(data, data, empty, best, bounds, model, fitted=fitted, unit=unit,
+    return fit_result(data, data, None, best, bounds, model, fitted=fitted, unit=unit,
                       method="hybrid", status=status, evaluations=evaluations + lm_evaluations,
                       lm_steps=polished.steps, lm_success=polished.success,
                       timings={"total": seconds}, history=history, message=message)

@@ -333,9 +333,9 @@ def check_bounds(bounds: Bounds, model: Model) -> None:
 def fit_result(data, train, held, vector, bounds, model, geometry=None, fitted=None,
                unit=None, **details) -> FitResult:
     """A `FitResult` for ``vector``: E overall, per incidence and held out, from one model
-    evaluation of ``data`` (split into ``train`` and ``held``; ``geometry`` is the model's
-    geometry of ``data``, padded or not, where already computed); ``details`` fill the rest
-    (status, timings, ...).
+    evaluation of ``data`` (split into ``train`` and ``held``, None where nothing is held
+    out; ``geometry`` is the model's geometry of ``data``, padded or not, where already
+    computed); ``details`` fill the rest (status, timings, ...).
 
     ``fitted`` (the projected BRDF on the points of ``data``, padded or not) and ``unit``
     (the unit-cube coordinates) of the reported parameters, ``model.canonical(vector)``,
@@ -349,9 +349,10 @@ def fit_result(data, train, held, vector, bounds, model, geometry=None, fitted=N
     fitted = np.asarray(fitted)[:len(data)]  # padded geometry
     unit = np.asarray(to_unit(vector, bounds)) if unit is None else unit
     target, weight = targets(data)
-    trained, held_out = train.incidences_deg, held.incidences_deg
-    is_held = data.incidence_mask(held_out)
     theta = np.round(np.degrees(data.theta_i), 6)
+    held_out = [] if held is None else held.incidences_deg
+    is_held = data.incidence_mask(held_out)
+    trained = np.unique(theta[~is_held])  # train's incidences: the points not held out
 
     def error_on(mask):
         return relative_error(fitted[mask], target[mask], weight[mask])
