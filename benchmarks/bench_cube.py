@@ -120,7 +120,7 @@ def bench_cube(count: int, subset: int, quick: bool) -> None:
 
     folder = Path(tempfile.mkdtemp(prefix="brdfjax-cube-"))
     env = {**os.environ, "BRDFJAX_CACHE": str(folder / "cache"), "PYTHONPATH": str(REPO)}
-    chunk = 64  # brdfjax batch's default --chunk-size
+    from brdfjax.commands.batch import CUBE_CHUNK as chunk  # the default --chunk-size
     make_cube(folder / "warm.h5", 2 * chunk, seed=1)
     first = run(folder / "warm.h5", folder / "warm_results.h5", env)
     tic = time.perf_counter()
@@ -194,9 +194,12 @@ def bench_lanes(quick: bool) -> None:
         "on an accelerator, where lanes run at once, it wins;\n"
         f"- slow lanes (above twice their chunk's median) moved to a second batch: "
         f"{r['slow']} lanes, {r['split']} iterations in all.\n\n"
-        "Measured, 256 samples, 2 CPU devices (`search_batch`, `polish_batch`; E against "
-        "the per-sample path):\n\n"
-        "| search_batch, polish_batch | wall (s) | CPU (s) | largest relative difference in E |\n"
+        "Measured, 256 samples, 2 CPU devices (`search_batch`, `polish_batch` of the map "
+        "path, and `lanes='vmap'`: every sample and each of its LM starts side by side, "
+        "the convergence round stopped at `LANE_STEPS` and the starts still running "
+        "resumed in a second batch, `brdfjax.fitting.batch`; E against the per-sample "
+        "path):\n\n"
+        "| design | wall (s) | CPU (s) | largest relative difference in E |\n"
         "|---|---|---|---|\n" + rows + "\n\n"
         + ("Every strategy gave the per-sample path's E to 1e-9 on these samples. "
            if all(v["difference"] <= 1e-9 for v in r["strategies"].values()) else
@@ -231,16 +234,18 @@ def lanes_worker(count: int) -> None:
     split = int(np.where(blocks <= cut, blocks, 0).max(1).sum() + slow[::64].sum())
     strategies = {}
     reference = np.array([r.error for r in base[:256]])
-    for search, polish in ((1, 1), (1, None), (None, None)):
-        fit_batch(samples[:64], search_batch=search, polish_batch=polish, chunk_size=64)
+    designs = {f"{search}, {polish}": {"search_batch": search, "polish_batch": polish}
+               for search, polish in ((1, 1), (1, None), (None, None))}
+    designs["lanes='vmap'"] = {"lanes": "vmap"}  # the accelerator's: starts side by side too
+    for label, design in designs.items():
+        fit_batch(samples[:64], chunk_size=64, **design)
         usage = resource.getrusage(resource.RUSAGE_SELF)
         tic = time.perf_counter()
-        results = fit_batch(samples[:256], search_batch=search, polish_batch=polish,
-                            chunk_size=64)
+        results = fit_batch(samples[:256], chunk_size=64, **design)
         wall = time.perf_counter() - tic
         after = resource.getrusage(resource.RUSAGE_SELF)
         errors = np.array([r.error for r in results])
-        strategies[f"{search}, {polish}"] = {
+        strategies[label] = {
             "wall": wall, "cpu": after.ru_utime + after.ru_stime - usage.ru_utime
             - usage.ru_stime, "difference": float(np.max(np.abs(errors - reference)
                                                          / reference))}
@@ -269,6 +274,8 @@ def make_modis_cube(path, count: int, own_geometry: bool, seed: int = 0) -> None
 
 
 def bench_rossli(count: int, baseline: Path | None, quick: bool) -> None:
+    from brdfjax.commands.batch import CUBE_CHUNK
+
     folder = Path(tempfile.mkdtemp(prefix="brdfjax-rossli-"))
     trees = {"after": REPO} | ({"before": baseline.resolve()} if baseline else {})
     rows, peers = [], {}
@@ -310,7 +317,7 @@ def bench_rossli(count: int, baseline: Path | None, quick: bool) -> None:
         "moved by up to 3 deg (per-sample geometry, (N, P) angles).\n\n"
         "Wall seconds, two runs each: the warm command (a first run filled the caches; "
         "results deleted between runs; process start-up, reading and writing included, "
-        "`--chunk-size` 64) and `brdfjax.fit_batch` of the same samples in a warm process "
+        f"the default `--chunk-size`, {CUBE_CHUNK} for a cube) and `brdfjax.fit_batch` of the same samples in a warm process "
         "(default `chunk_size` 256, one CPU device per core). *before*: the baseline "
         "checkout" + (f" `{_commit(baseline)}`" if baseline else "") + "; *after*: this "
         "one" + (f" `{_commit(REPO)}`" if baseline else "") + ".\n\n"
