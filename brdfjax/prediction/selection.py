@@ -82,7 +82,16 @@ class Comparison:
 
     @property
     def best(self) -> ModelScore:
+        """The compact analytic model: the lowest cv_error."""
         return next(s for s in self.scores if s.name == self.ranking[0])
+
+    @property
+    def predictor(self) -> ModelScore:
+        """The model to predict with: the lowest cv_error of the model times its learned
+        discrepancy (`best` where no discrepancy was scored)."""
+        corrected = ranked({s.name: s.corrected_cv_error for s in self.scores})
+        first = next(s for s in self.scores if s.name == corrected[0])
+        return first if np.isfinite(first.corrected_cv_error) else self.best
 
     def recommendation(self) -> str:
         """One line: the model to use and why."""
@@ -96,8 +105,7 @@ class Comparison:
         default = next((s for s in self.scores if s.name == "five"), None)
         if default is not None and default is not best and np.isfinite(default.cv_error):
             line += f" and {default.cv_error / best.cv_error:.3g}x lower than the paper's model"
-        corrected = ranked({s.name: s.corrected_cv_error for s in self.scores})
-        predictor = next(s for s in self.scores if s.name == corrected[0])
+        predictor = self.predictor
         if np.isfinite(predictor.corrected_cv_error):
             line += (f"\nto predict unmeasured geometry: {predictor.name} with its learned "
                      f"discrepancy (cv_error {100 * predictor.corrected_cv_error:.3g} %; "
