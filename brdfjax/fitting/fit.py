@@ -351,7 +351,7 @@ def fit_result(data, train, held, vector, bounds, model, geometry=None, fitted=N
     target, weight = targets(data)
     theta = np.round(np.degrees(data.theta_i), 6)
     held_out = [] if held is None else held.incidences_deg
-    is_held = data.incidence_mask(held_out)
+    is_held = np.zeros(len(data), bool) if held is None else data.incidence_mask(held_out)
     trained = np.unique(theta[~is_held])  # train's incidences: the points not held out
 
     def error_on(mask):
@@ -365,7 +365,8 @@ def fit_result(data, train, held, vector, bounds, model, geometry=None, fitted=N
         validation_error=error_on(is_held) if is_held.any() else None,
         validation_by_incidence={float(d): error_on(theta == d) for d in held_out},
         residuals=np.sqrt(normalised) * (fitted[~is_held] - target[~is_held]),
-        at_bounds=[n for n, z in zip(model.names, unit) if z < 1e-6 or z > 1 - 1e-6],
+        at_bounds=[n for n, z in zip(model.names, np.asarray(unit).tolist())
+                   if z < 1e-6 or z > 1 - 1e-6],
         train_incidences=[float(x) for x in trained],
         validation_incidences=[float(x) for x in held_out],
         bounds=bounds, model=model, training=train, **details)
