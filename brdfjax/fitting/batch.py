@@ -39,9 +39,9 @@ distinct good members), but as one compiled call per chunk of samples:
      state) until the slowest is done. So that a few slow lanes do not hold all the others,
      LM's convergence round stops at `LANE_STEPS` steps (the longest start of a 64-point
      cube sample took a median of 52 LM steps, screening's 40 included, 90 at the 90th
-     percentile: ``BENCHMARKS.md``, section lanes-cpu), and the
-     starts still running then continue in a second, small batch of their own from where
-     they stopped, for the rest of ``max_steps`` (`_resume_slow`). A start so resumed
+     percentile: ``BENCHMARKS.md``, section lanes-cpu), and the starts still running then
+     continue in a second, small batch of their own from where they stopped, for the
+     rest of ``max_steps`` (`_resume_slow`). A start so resumed
      restarts LM's damping, so it ends at the same minimum by a slightly different path:
      E equal to the ``map`` path's to 1e-9 (tested), not bit for bit.
 6. The sample axis is split over the local devices: each device gets a contiguous block
