@@ -13,6 +13,7 @@ validate 21/52 deg).
 
 from __future__ import annotations
 
+import threading
 import time
 from dataclasses import dataclass, field
 
@@ -194,6 +195,8 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
         steps, success = np.asarray(polished.steps), np.asarray(polished.success)
         method_ran = "solve"
     elif method != "lm":
+        ahead = (_polish_ahead(search, bounds, population_size, starts, max_steps)
+                 if method == "hybrid" else None)
         tic = time.perf_counter()
         searched = evolve(seed, search, bounds, config, population_size=population_size,
                           max_generations=max_generations)
@@ -209,6 +212,8 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
     else:
         tic = time.perf_counter()
         if method == "hybrid":
+            if ahead is not None:
+                ahead.join()  # never two LMs at once: XLA's LAPACK calls can deadlock
             polished = polish_population(searched.population, search, bounds, starts=starts,
                                          max_steps=max_steps)
             if search is not prob:  # the winner of the representative points, on every point
@@ -230,6 +235,37 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
                       geometry=None if len(held) else prob.scene, method=method,
                       status=status, evaluations=evaluations, lm_steps=steps,
                       lm_success=success, timings=timings, history=history)
+
+
+# The polish shapes compiled ahead in this process (`_polish_ahead`).
+_polished_ahead: set = set()
+
+
+def _polish_ahead(search: Problem, bounds: Bounds, population_size: int, starts: int,
+                  max_steps: int) -> threading.Thread | None:
+    """Compile the hybrid fit's polish in a second thread while this one compiles and runs
+    the genetic search: XLA compiles each on its own core (a first ``brdfjax fit`` of 716
+    points: BENCHMARKS.md, section startup). The thread runs the polish once on a population
+    of identical members, so only a start or two take a few LM steps; its result is
+    dropped. None where these shapes were compiled ahead before in this process.
+    """
+    import jax
+    import jax.numpy as jnp
+
+    key = (search.model, search.target.shape, search.target.dtype, population_size, starts,
+           max_steps)
+    if key in _polished_ahead:
+        return None
+    _polished_ahead.add(key)
+    # Placed on a device, as the search's population is: an uncommitted array is another
+    # input to jit, compiled again.
+    population = jax.device_put(jnp.full((population_size, search.model.size), 0.5,
+                                         search.target.dtype), jax.devices()[0])
+    thread = threading.Thread(target=polish_population, args=(population, search, bounds),
+                              kwargs={"starts": starts, "max_steps": max_steps}, daemon=True,
+                              name="brdfjax polish compiled ahead")
+    thread.start()
+    return thread
 
 
 def solved_fit(prob: Problem, bounds: Bounds, max_generations: int = 40):
