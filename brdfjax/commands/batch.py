@@ -162,8 +162,10 @@ def result_options(args, model) -> dict:
     its default is the same run as one left out), and the bounds to the whole box of the
     model (so ``--bound b=-150:80`` equals the default box it spells out). ``--chunk-size``,
     ``--scheduler`` and ``--lanes`` are left out: they change where and how samples are
-    grouped and run, not their results (`brdfjax.fitting.batch.fit_batch`; the lanes end
-    converged fits at the same E to 1e-9, tested).
+    grouped and run, not the fit asked for (`brdfjax.fitting.batch.fit_batch`). Like
+    another machine or JAX version, ``--lanes`` changes the order of the arithmetic: fits
+    agree to 1e-9 in E where measured, and a search that branches on the last bits can,
+    rarely, end in another basin.
     """
     from brdfjax.commands.fitting import parse_bounds
     from brdfjax.fitting.batch import FIT_DEFAULTS

@@ -41,9 +41,12 @@ distinct good members), but as one compiled call per chunk of samples:
      cube sample took a median of 52 LM steps, screening's 40 included, 90 at the 90th
      percentile: ``BENCHMARKS.md``, section lanes-cpu), and the starts still running then
      continue in a second, small batch of their own from where they stopped, for the
-     rest of ``max_steps`` (`_resume_slow`). A start so resumed
-     restarts LM's damping, so it ends at the same minimum by a slightly different path:
-     E equal to the ``map`` path's to 1e-9 (tested), not bit for bit.
+     rest of ``max_steps`` (`_resume_slow`, on the first device: it is small). A start so
+     resumed restarts LM's damping and reaches its minimum by a slightly different path.
+     Converged fits ended at the ``map`` path's E to 1e-9 in the tests and to 1.4e-14 on
+     256 cube samples (``BENCHMARKS.md``, lanes-cpu), but not bit for bit: the vmapped
+     genetic search computes in another order, and a search that branches on the last
+     bits can end in another basin (once seen on another cube, 3.5e-4 in E).
 6. The sample axis is split over the local devices: each device gets a contiguous block
    of the chunk's samples, placed on it (``jax.device_put``) and fitted by the same
    compiled function, dispatched to all devices before waiting on any, so the devices run
@@ -221,9 +224,10 @@ def lane_choice(lanes: str, devices) -> str:
 def _resume_slow(polished: PolishResult, chunk: Problem, bounds: Bounds, device,
                  steps: int) -> PolishResult:
     """The ``vmap`` lanes' second batch: every start of ``polished`` (host arrays,
-    (samples, starts, ...)) that stopped at `LANE_STEPS` without converging, run on for up
-    to ``steps`` more LM steps side by side, its results put in its place (steps and
-    evaluations added). ``chunk``: the padded chunk of `_run_chunk`."""
+    (samples, starts, ...)) that ended unconverged with a finite E (stopped at `LANE_STEPS`,
+    or rarely for another reason), run on for up to ``steps`` more LM steps side by side,
+    its results put in its place (steps and evaluations added; the resumed run evaluates
+    its start once more). ``chunk``: the padded chunk of `_run_chunk`."""
     samples, starts = np.nonzero(~polished.success & np.isfinite(polished.errors))
     if not samples.size:
         return polished

@@ -17,6 +17,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 
+import jax
 import numpy as np
 
 from brdfjax.cache import stage
@@ -214,7 +215,8 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
         if method == "hybrid":
             if ahead is not None:
                 ahead.join()  # never two LMs at once: XLA's LAPACK calls can deadlock
-            polished = polish_population(searched.population, search, bounds, starts=starts,
+            polished = polish_population(placed(searched.population), search, bounds,
+                                         starts=starts,
                                          max_steps=max_steps)
             if search is not prob:  # the winner of the representative points, on every point
                 winner, _, screened = polish_summary(polished)
@@ -245,11 +247,11 @@ def _polish_ahead(search: Problem, bounds: Bounds, population_size: int, starts:
                   max_steps: int) -> threading.Thread | None:
     """Compile the hybrid fit's polish in a second thread while this one compiles and runs
     the genetic search: XLA compiles each on its own core (a first ``brdfjax fit`` of 716
-    points: BENCHMARKS.md, section startup). The thread runs the polish once on a population
-    of identical members, so only a start or two take a few LM steps; its result is
-    dropped. None where these shapes were compiled ahead before in this process.
+    points: BENCHMARKS.md, section startup). The thread runs the polish once, to the end,
+    on a population of identical members placed on the device (`placed`), so only a start
+    or two take a few LM steps; its result, or its error (the real call raises it again),
+    is dropped. None where these shapes were compiled ahead before in this process.
     """
-    import jax
     import jax.numpy as jnp
 
     key = (search.model, search.target.shape, search.target.dtype, population_size, starts,
@@ -257,15 +259,28 @@ def _polish_ahead(search: Problem, bounds: Bounds, population_size: int, starts:
     if key in _polished_ahead:
         return None
     _polished_ahead.add(key)
-    # Placed on a device, as the search's population is: an uncommitted array is another
-    # input to jit, compiled again.
-    population = jax.device_put(jnp.full((population_size, search.model.size), 0.5,
-                                         search.target.dtype), jax.devices()[0])
-    thread = threading.Thread(target=polish_population, args=(population, search, bounds),
-                              kwargs={"starts": starts, "max_steps": max_steps}, daemon=True,
+    population = placed(jnp.full((population_size, search.model.size), 0.5,
+                                 search.target.dtype))
+
+    def compile_and_run():
+        try:  # waited for: the caller's join() must mean that no LM is running
+            polish_population(population, search, bounds, starts=starts,
+                              max_steps=max_steps).errors.block_until_ready()
+        except Exception:  # noqa: BLE001, S110  (the real call raises it)
+            pass
+
+    thread = threading.Thread(target=compile_and_run, daemon=True,
                               name="brdfjax polish compiled ahead")
     thread.start()
     return thread
+
+
+def placed(array):
+    """``array`` committed to the default device. jit compiles a function once per kind of
+    input placement: an array left uncommitted (the output of a plain ``jax.jit``) and one
+    placed on a device (the output of a disk-cached stage, `brdfjax.cache`) are two inputs,
+    compiled twice. The polish and its compile-ahead both take placed populations."""
+    return jax.device_put(array, jax.devices()[0])
 
 
 def solved_fit(prob: Problem, bounds: Bounds, max_generations: int = 40):
