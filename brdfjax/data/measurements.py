@@ -251,7 +251,9 @@ def validate(data: Measurements, path=None, lines=None, geometry_only: bool = Fa
         fail(None, "no measurements", "the file has a header but no data lines")
     angles = ("theta_i", "theta_r", "phi_r")
     checked = angles if geometry_only else tuple(data._arrays())
-    for name in checked[len(angles):] if angles_checked else checked:
+    if angles_checked:
+        checked = checked[len(angles):]  # `Measurements._arrays` lists the angles first
+    for name in checked:
         values = getattr(data, name)
         if values is None:
             continue

@@ -231,9 +231,8 @@ def _resume_slow(polished: PolishResult, chunk: Problem, bounds: Bounds, device,
     samples, starts = np.nonzero(~polished.success & np.isfinite(polished.errors))
     if not samples.size:
         return polished
-    lanes = 1 << (samples.size - 1).bit_length()  # few compiled sizes
-    pick = np.concatenate([samples, np.repeat(samples[:1], lanes - samples.size)])
-    start = np.concatenate([starts, np.repeat(starts[:1], lanes - samples.size)])
+    filled = _filled(samples.size, _power_of_two(samples.size))  # few compiled sizes
+    pick, start = samples[filled], starts[filled]
     shared = chunk.scene.cos_theta_r.ndim == 1
     scene = chunk.scene if shared else jax.tree.map(lambda x: x[pick], chunk.scene)
     arrays = jax.device_put((polished.free[pick, start], scene, chunk.target[pick],
@@ -315,7 +314,7 @@ def _run_chunk(problems: list[Problem], seeds, bounds, config, devices, chunk_si
     # and a small chunk (a cross-validation's folds, a few files) gains less from a second
     # device than that compilation (or its load from the cache) costs.
     devices = devices[:max(1, count // SAMPLES_PER_DEVICE)]
-    lanes = min(chunk_size, 1 << (count - 1).bit_length())
+    lanes = min(chunk_size, _power_of_two(count))
     lanes = -(-max(lanes, count) // len(devices)) * len(devices)
     points = max(p.target.size for p in problems)  # each already a multiple of POINT_BUCKET
     chosen = _filled(count, lanes)
@@ -350,6 +349,12 @@ def _run_chunk(problems: list[Problem], seeds, bounds, config, devices, chunk_si
             running = list(pool.map(dispatch, range(len(devices))))
     results = jax.tree.map(lambda *blocks: np.concatenate(blocks)[:count], *running)
     return results, Problem(scene, targets, weights, model)
+
+
+def _power_of_two(count: int) -> int:
+    """The smallest power of two at least ``count`` (at least 1): lane counts so rounded
+    keep the compiled shapes few."""
+    return 1 << (count - 1).bit_length()
 
 
 def _filled(count: int, lanes: int) -> list[int]:

@@ -216,8 +216,7 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
             if ahead is not None:
                 ahead.join()  # never two LMs at once: XLA's LAPACK calls can deadlock
             polished = polish_population(placed(searched.population), search, bounds,
-                                         starts=starts,
-                                         max_steps=max_steps)
+                                         starts=starts, max_steps=max_steps)
             if search is not prob:  # the winner of the representative points, on every point
                 winner, _, screened = polish_summary(polished)
                 evaluations += screened * search.target.size // prob.target.size
