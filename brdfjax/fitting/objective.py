@@ -358,43 +358,53 @@ def polytope_least_squares(gram, projections, total, low, high, pairs=()):
     kinds = [(0, k) for k in range(count)] + [(1, k) for k in range(count)] + [
         (2, n) for n in range(len(pairs))]
     faces = list(itertools.product(*choices))
-    anchor_of = np.zeros((len(faces), count, len(values)))
-    basis_of = np.zeros((len(faces), count, count, len(ratios)))
+    # Every coordinate has one anchor, and every free variable v enters x through
+    # coordinate v (ratio 1) and at most one other, its ``partner`` (a pair's sum edge:
+    # x_j = s / w_j + slope y_i): B's column v is ``e_v + slope e_partner``. So B'GB and
+    # B'r are gathers of G's rows and columns, not products with a dense B (F x K^3 work
+    # for the population's every member: most of a sum's search time before).
+    anchor_of = np.zeros((len(faces), count), dtype=int)
     free = np.zeros((len(faces), count), dtype=bool)
+    partner = np.tile(np.arange(count), (len(faces), 1))
+    slope_of = np.full((len(faces), count), len(ratios))  # the index of 0 in `ratios` below
     checks = np.zeros((len(faces), len(kinds)), dtype=bool)
     for f, face in enumerate(faces):
         for k, anchor, terms, wanted in (e for group in face for e in group):
-            anchor_of[f, k, anchor] = 1.0
+            anchor_of[f, k] = anchor
             for variable, ratio in terms.items():
-                basis_of[f, k, variable, ratio] = 1.0
                 free[f, variable] = True
+                if variable != k:  # (on its own coordinate a variable's ratio is 1)
+                    partner[f, variable], slope_of[f, variable] = k, ratio
             for check in wanted:
                 checks[f, kinds.index(check)] = True
     values = jnp.stack([jnp.asarray(v, dtype) for v in values])
-    ratios = jnp.stack([jnp.asarray(r, dtype) for r in ratios])
-    anchors = jnp.sum(jnp.asarray(anchor_of, dtype) * values, axis=-1)       # (F, K)
-    bases = jnp.sum(jnp.asarray(basis_of, dtype) * ratios, axis=-1)          # (F, K, K)
+    ratios = jnp.stack([jnp.asarray(r, dtype) for r in ratios] + [jnp.asarray(0.0, dtype)])
+    anchors = values[anchor_of]                                               # (F, K)
+    slopes = ratios[slope_of]                                                 # (F, K)
     free, checks = jnp.asarray(free), jnp.asarray(checks)
-    # x = a + B y; (B'GB) y = B'(p - G a) over the free y (the others pinned to 0).
-    # Products as broadcast sums, not einsum: XLA on CPU runs a batch of tiny matrix
-    # products (a population times the faces) one small call each, about 10x slower.
-    gram_bases = jnp.sum(gram[None, :, :, None] * bases[:, None, :, :], axis=2)  # G B
-    reduced = jnp.sum(bases[:, :, :, None] * gram_bases[:, :, None, :], axis=1)
     pinned = ~free
+    # x = a + B y; (B'GB) y = B'(p - G a) over the free y (the others pinned to 0).
+    gram_bases = gram[None] + slopes[:, None, :] * gram[:, partner].transpose(1, 0, 2)  # G B
+    reduced = gram_bases + slopes[:, :, None] * jnp.take_along_axis(
+        gram_bases, jnp.asarray(partner)[:, :, None], axis=1)
     reduced = jnp.where(pinned[:, :, None] | pinned[:, None, :], 0.0, reduced)
     diagonal = jnp.diagonal(reduced, axis1=1, axis2=2)
     reduced = reduced + jnp.eye(count, dtype=dtype) * jnp.where(pinned, 1.0, 0.0)[:, None, :]
     residual = projections - jnp.sum(anchors[:, :, None] * gram[None], axis=1)
-    rhs = jnp.sum(bases * residual[:, :, None], axis=1)
+    rhs = residual + slopes * jnp.take_along_axis(residual, jnp.asarray(partner), axis=1)
     rhs = jnp.where(free, rhs, 0.0)
     # Cholesky unrolled over the K coordinates, vectorised over the faces: no LAPACK call
     # (LAPACK's custom calls were seen to hang XLA on CPU with several threads or devices,
     # see `brdfjax.fitting.polish`; this is as fast for K <= 7).
     rows = [[reduced[:, i, j] for j in range(count)] for i in range(count)]
     y, pivots = _cholesky_solve(rows, [rhs[:, i] for i in range(count)], with_pivots=True)
-    y = jnp.stack(y, axis=1)
+    y = jnp.where(free, jnp.stack(y, axis=1), 0.0)
     regular = jnp.all(pinned | (jnp.stack(pivots, axis=1) > PIVOT_TOLERANCE * diagonal), axis=1)
-    x = anchors + jnp.sum(bases * y[:, None, :], axis=2)
+    moved = jnp.asarray(np.arange(count) == partner[:, :, None], dtype)       # (F, v, k)
+    x = anchors + y + jnp.sum((slopes * y)[:, :, None] * moved, axis=1)
+    # Formed once: without the barrier XLA fused x's whole chain (the Cholesky included)
+    # into each of its consumers below and computed it again in each (twice the time).
+    x, regular = jax.lax.optimization_barrier((x, regular))
     satisfied = [(x >= low) & (x <= high)]  # kind 0
     satisfied.append(x >= 0)  # kind 1
     sums = [w_i * x[:, i] + w_j * x[:, j] for i, j, w_i, w_j, *_ in pairs]
