@@ -15,7 +15,8 @@ distinct good members), but as one compiled call per chunk of samples:
    `brdfjax.fitting.objective.POINT_BUCKET` with zero-weight copies of the sample's first point
    (as a single fit pads them), then to the chunk's largest sample, and a chunk's
    sample count to a power of two (at most ``chunk_size``) and a multiple of the device
-   count, with copies of its first sample whose results are dropped. Compilations are so
+   count, with copies of its first sample whose results are dropped (``map`` lanes skip
+   them: they cost nothing there). Compilations are so
    bounded to one per (sample bucket, point bucket, shared geometry or not) and device
    (XLA compiles for each device it runs on, all devices at once; a chunk uses one device
    per `SAMPLES_PER_DEVICE` samples at most, so a small chunk compiles once).
@@ -68,6 +69,7 @@ from concurrent.futures import ThreadPoolExecutor
 from functools import partial
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from brdfjax.cache import stage
@@ -329,13 +331,14 @@ def _run_chunk(problems: list[Problem], seeds, bounds, config, devices, chunk_si
                              *(padded_scene(problems[i].scene, points) for i in chosen))
     config = EvolveConfig() if config is None else config
     block = lanes // len(devices)
-    per_sample = (np.asarray(seeds)[chosen], targets, weights, None if shared else scene)
+    real = np.arange(lanes) < count  # the copies padding the chunk are skipped (map lanes)
+    per_sample = (np.asarray(seeds)[chosen], real, targets, weights, None if shared else scene)
 
     def dispatch(number: int):
         device = devices[number]
         part = jax.tree.map(partial(_block, number=number, size=block), per_sample)
-        seeds_, target, weight, scene_ = jax.device_put(part, device)
-        return _fit_chunk(seeds_, jax.device_put(scene, device) if shared else scene_,
+        seeds_, real_, target, weight, scene_ = jax.device_put(part, device)
+        return _fit_chunk(seeds_, real_, jax.device_put(scene, device) if shared else scene_,
                           target, weight, *jax.device_put((bounds, config), device),
                           model, **settings)
 
@@ -394,7 +397,7 @@ def _block(values, number: int, size: int):
 
 @stage(static_argnames=("population_size", "max_generations", "starts", "max_steps",
                         "search_batch", "polish_batch", "side_by_side"))
-def _fit_chunk(seeds, scene, target, weight, bounds: Bounds, config: EvolveConfig,
+def _fit_chunk(seeds, real, scene, target, weight, bounds: Bounds, config: EvolveConfig,
                model: Model, *, population_size: int, max_generations: int, starts: int,
                max_steps: int, search_batch: int | None, polish_batch: int | None,
                side_by_side: bool) -> tuple[EvolveResult, PolishResult]:
@@ -402,6 +405,8 @@ def _fit_chunk(seeds, scene, target, weight, bounds: Bounds, config: EvolveConfi
 
     Args:
         seeds: one integer seed per sample, (B,).
+        real: whether each lane holds a sample (B,); the others pad the chunk and are
+            skipped where samples run one at a time (`across_samples`).
         scene: one geometry (N,) shared by every sample, or one per sample (B, N).
         target, weight: the `Problem` arrays of each sample, (B, N); weight 0 on padding.
         bounds, config: the search box and the genetic-search rates.
@@ -428,18 +433,21 @@ def _fit_chunk(seeds, scene, target, weight, bounds: Bounds, config: EvolveConfi
         return polish_population(population, Problem(scene, target, weight, model), bounds,
                                  starts=starts, max_steps=max_steps, side_by_side=side_by_side)
 
-    searched = across_samples(search, scene, (seeds, target, weight), search_batch)
+    searched = across_samples(search, scene, (seeds, target, weight), search_batch, real)
     polished = across_samples(refine, scene, (searched.population, target, weight),
-                              polish_batch)
+                              polish_batch, real)
     return searched, polished
 
 
-def across_samples(function, scene, arrays: tuple, batch: int | None):
+def across_samples(function, scene, arrays: tuple, batch: int | None, real=None):
     """``function(scene, *arrays[i])`` for every sample i, ``batch`` samples side by side.
 
     ``batch`` samples run together under ``vmap``, such groups one after another under
     ``lax.map``; ``None`` vmaps them all at once. Under ``vmap`` a loop runs as long as its
-    slowest lane, so on a CPU small groups can be faster (``BENCHMARKS.md``).
+    slowest lane, so on a CPU small groups can be faster (``BENCHMARKS.md``). With
+    ``batch`` 1, the samples whose ``real`` flag is False are skipped (their outputs are
+    zeros): a chunk's padding costs nothing (a cross-validation's 5 fits padded to 8 lanes
+    ran 1.6 times as long). Side by side, a skipped lane would still run.
 
     Args:
         function: ``(scene, *per-sample arrays) -> pytree`` for one sample.
@@ -455,9 +463,20 @@ def across_samples(function, scene, arrays: tuple, batch: int | None):
         return jax.vmap(function, in_axes=(None if shared else 0,) + (0,) * len(arrays))(
             scene, *arrays)
     mapped = arrays if shared else (scene, *arrays)
+    skipping = batch == 1 and real is not None
+    if skipping:
+        mapped = (real, *mapped)
 
     def one(item):
-        return function(scene, *item) if shared else function(*item)
+        flag, item = (item[0], item[1:]) if skipping else (True, item)
+
+        def run():
+            return function(scene, *item) if shared else function(*item)
+
+        if not skipping:
+            return run()
+        zeros = jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), jax.eval_shape(run))
+        return jax.lax.cond(flag, run, lambda: zeros)
 
     # batch_size=1 would still vmap each sample (over an axis of one), which costs more
     return jax.lax.map(one, mapped, batch_size=None if batch == 1 else batch)
