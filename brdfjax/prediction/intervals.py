@@ -52,6 +52,7 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -173,41 +174,21 @@ def calibrate_all(data: Measurements, validations: list, *,
             for f in v.folds]), **common, interior_labels=_interior(v)) for v, _ in validations]
     if any(fitted is None for _, fitted in validations):
         raise ValueError("calibrate(discrepancy='gp') needs the full fit's parameters")
-    from brdfjax.fitting.objective import brdf_values, prepare
-    from brdfjax.models import get
-    from brdfjax.prediction.cross_validation import held_out_error
     from brdfjax.prediction.discrepancy import log_residual
 
-    values, masks = [], []
-    for validation, fitted in validations:
-        model = get(validation.model)
-        geometry = prepare(data, model)
-        for vector in [f.params for f in validation.folds] + [np.asarray(fitted, float)]:
-            values.append(np.asarray(brdf_values(vector, geometry, model)))
-            masks.append(np.ones(len(data), bool))
-        for mask, fold in zip(masks[-len(validation.folds) - 1:], validation.folds):
-            mask[fold.index] = False
-    processes = iter(_fit_processes(data, values, masks, floor))
-    values = iter(values)
     calibrations = []
-    for validation, _ in validations:
+    for validation, (folds, full_process) in zip(
+            (v for v, _ in validations), _corrected_folds(data, validations, floor)):
         scores = {"sigma": [], "relative": []}
         corrected, widths = {}, []
-        for fold, value, process in zip(validation.folds, values, processes):
-            held = np.isin(np.arange(len(data)), fold.index)
-            mu, sigma = process.predict(data.theta_i[held], data.theta_r[held],
-                                        data.phi_r[held])
-            residual = log_residual(data.brdf[held], value[held], floor)
-            centre = process.correct(value[held], mu)
-            scores["sigma"].append(np.abs(residual - mu) / sigma)
-            scores["relative"].append(np.abs(data.brdf[held] - centre) / (np.abs(centre) + floor))
-            full = value.copy()
-            full[held] = centre
-            corrected[fold.label] = held_out_error(full, data, held)
-            if fold.interior:
-                widths.append((value[held], mu, sigma))
-        next(values)
-        full_process = next(processes)
+        for c in folds:
+            measured = data.brdf[c.held]
+            residual = log_residual(measured, c.value[c.held], floor)
+            scores["sigma"].append(np.abs(residual - c.mu) / c.sigma)
+            scores["relative"].append(np.abs(measured - c.centre) / (np.abs(c.centre) + floor))
+            corrected[c.fold.label] = _corrected_error(c, data)
+            if c.fold.interior:
+                widths.append((c.value[c.held], c.mu, c.sigma))
         candidates = [Calibration(*_split(validation.folds, found), **common,
                                   interior_labels=_interior(validation),
                                   discrepancy=full_process, corrected_errors=corrected,
@@ -216,6 +197,76 @@ def calibrate_all(data: Measurements, validations: list, *,
         calibrations.append(candidates[0] if sigma_width <= SIGMA_PREFERENCE * relative_width
                             else candidates[1])
     return calibrations
+
+
+def corrected_cv_errors(data: Measurements, validations: list) -> list[float]:
+    """cv_error of each model corrected by its learned discrepancy: what
+    `Calibration.corrected_cv_error` reports, for cross-validations of ``data`` (one per
+    model), with only the interior folds' processes fitted (all of them in one batched call;
+    the intervals also need the end folds' and the full data's, `calibrate_all`). NaN for a
+    model without interior folds. Call it from one thread, as `calibrate_all`."""
+    floor = FLOOR_FRACTION * float(np.median(np.abs(data.brdf)))
+    return [float(np.mean([_corrected_error(c, data) for c in folds])) if folds else np.nan
+            for folds, _ in _corrected_folds(data, [(v, None) for v in validations], floor,
+                                             interior_only=True)]
+
+
+class _Corrected(NamedTuple):
+    """One fold's held-out points predicted by its model corrected by a process fitted to
+    the fold's training points: the model's values on all points (N,), the held-out mask,
+    and on the held-out points the process's ``mu`` and ``sigma`` and the corrected BRDF."""
+
+    fold: object
+    value: np.ndarray
+    held: np.ndarray
+    mu: np.ndarray
+    sigma: np.ndarray
+    centre: np.ndarray
+
+
+def _corrected_folds(data: Measurements, validations: list, floor: float, *,
+                     interior_only: bool = False) -> list:
+    """Per ``(validation, fitted)``: every fold's (or every interior fold's) `_Corrected`,
+    and the process fitted to all points with the model's ``fitted`` parameters (None with
+    ``interior_only``), every process of every model fitted in one batched call."""
+    from brdfjax.fitting.objective import brdf_values, prepare
+    from brdfjax.models import get
+
+    chosen = [[f for f in v.folds if f.interior or not interior_only] for v, _ in validations]
+    values, masks = [], []
+    for (validation, fitted), folds in zip(validations, chosen):
+        model = get(validation.model)
+        geometry = prepare(data, model)
+        vectors = [f.params for f in folds] + ([] if interior_only else [fitted])
+        for vector in vectors:
+            values.append(np.asarray(brdf_values(np.asarray(vector, float), geometry, model)))
+            masks.append(np.ones(len(data), bool))
+        for mask, fold in zip(masks[-len(vectors):], folds):
+            mask[fold.index] = False
+    processes = iter(_fit_processes(data, values, masks, floor))
+    values = iter(values)
+    out = []
+    for folds in chosen:
+        corrected = []
+        for fold, value, process in zip(folds, values, processes):
+            held = np.isin(np.arange(len(data)), fold.index)
+            mu, sigma = process.predict(data.theta_i[held], data.theta_r[held],
+                                        data.phi_r[held])
+            corrected.append(_Corrected(fold, value, held, mu, sigma,
+                                        process.correct(value[held], mu)))
+        if not interior_only:
+            next(values)
+        out.append((corrected, None if interior_only else next(processes)))
+    return out
+
+
+def _corrected_error(corrected: _Corrected, data: Measurements) -> float:
+    """The held-out E of Eq. (6) of one fold's corrected prediction."""
+    from brdfjax.prediction.cross_validation import held_out_error
+
+    full = corrected.value.copy()
+    full[corrected.held] = corrected.centre
+    return held_out_error(full, data, corrected.held)
 
 
 def _median_width(calibration: Calibration, interior: list) -> float:

@@ -48,17 +48,13 @@ class ModelScore:
     aic: float
     bic: float
     reflectance: dict
-    calibration: object = None  # with the discrepancy: `brdfjax.prediction.intervals.Calibration`
+    # cv_error of the model times its learned correction (NaN where it was not scored):
+    # `brdfjax.prediction.intervals.corrected_cv_errors`
+    corrected_cv_error: float = float("nan")
 
     @property
     def cv_error(self) -> float:
         return self.validation.cv_error
-
-    @property
-    def corrected_cv_error(self) -> float:
-        """cv_error of the model times its learned correction (NaN without one)."""
-        return (self.calibration.corrected_cv_error if self.calibration is not None
-                else float("nan"))
 
     def to_dict(self) -> dict:
         return {"params": dict(zip(self.fit.model.names, map(float, self.fit.params))),
@@ -189,7 +185,7 @@ def compare_models(data: Measurements, models=None, *, seed: int = 0,
         seed: the seed of every fit.
         progress: show a progress bar (tqdm) of the models done.
         discrepancy: ``gp`` also scores each model corrected by its learned discrepancy
-            (`brdfjax.prediction.intervals.calibrate`); ``none`` skips that.
+            (`brdfjax.prediction.intervals.corrected_cv_errors`); ``none`` skips that.
 
     Returns:
         A `Comparison`.
@@ -197,7 +193,7 @@ def compare_models(data: Measurements, models=None, *, seed: int = 0,
     from brdfjax.models import get
     from brdfjax.models.hemispherical import reflectance
     from brdfjax.prediction.cross_validation import cross_validate
-    from brdfjax.prediction.intervals import calibrate_all
+    from brdfjax.prediction.intervals import corrected_cv_errors
 
     def score(name: str) -> ModelScore:
         validation = cross_validate(data, name, seed=seed, full_fit=True)  # one batched call
@@ -217,7 +213,7 @@ def compare_models(data: Measurements, models=None, *, seed: int = 0,
             bar.update()
         scores = [job.result() for job in running]
     if discrepancy == "gp":  # every model's processes in one call, in this thread
-        calibrations = calibrate_all(data, [(s.validation, s.fit.vector) for s in scores])
-        for score_, calibration in zip(scores, calibrations):
-            score_.calibration = calibration
+        errors = corrected_cv_errors(data, [s.validation for s in scores])
+        for score_, error in zip(scores, errors):
+            score_.corrected_cv_error = error
     return Comparison(scores)
