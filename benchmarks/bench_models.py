@@ -393,11 +393,15 @@ def paper_worker(tree: str, repeats: int) -> dict:
     import jax.numpy as jnp
 
     import brdfjax
-    from brdfjax.data.synthetic import paper_sample
-    from brdfjax.fitting.bounds import default_bounds
-    from brdfjax.fitting.evolve import score_population
-    from brdfjax.fitting.fit import fit
-    from brdfjax.fitting.objective import problem
+
+    # The modules were regrouped into stage packages (2026-12-01); a checkout from before
+    # has them at the top level.
+    paper_sample = _first_module("brdfjax.data.synthetic", "brdfjax.synthetic").paper_sample
+    default_bounds = _first_module("brdfjax.fitting.bounds", "brdfjax.bounds").default_bounds
+    score_population = _first_module("brdfjax.fitting.evolve",
+                                     "brdfjax.evolve").score_population
+    fit = _first_module("brdfjax.fitting.fit", "brdfjax.fitting").fit
+    problem = _first_module("brdfjax.fitting.objective", "brdfjax.objective").problem
 
     data = paper_sample("white_paint", noise=0.025, seed=1).at_incidences(TRAIN)
     out = {"brdfjax": str(Path(brdfjax.__file__).parent)}
@@ -423,6 +427,24 @@ def paper_worker(tree: str, repeats: int) -> dict:
     out["fit_median"], out["fit_min"], out["fit_error"] = (
         float(np.median(times)), min(times), result.error)
     return out
+
+
+def _commit_of(tree: Path) -> str:
+    """The short commit hash a checkout is at."""
+    return subprocess.run(["git", "-C", str(tree), "rev-parse", "--short", "HEAD"],
+                          capture_output=True, text=True, check=True).stdout.strip()
+
+
+def _first_module(*names):
+    """The first of the modules ``names`` that a checkout has."""
+    import importlib
+
+    for name in names:
+        try:
+            return importlib.import_module(name)
+        except ModuleNotFoundError:
+            continue
+    raise ModuleNotFoundError(" or ".join(names))
 
 
 def cold_fit(env: dict, train: Path) -> float:
@@ -483,7 +505,8 @@ def bench_paper(base: Path, rounds: int, batch_samples: int):
         for label, key in rows)
     write_section("models-paper", "## The paper's model before and after the family of "
                   "models\n\n"
-                  f"Before: `{base}` (the commit before the engine became generic), imported "
+                  f"Before: `{base}` (commit {_commit_of(base)}, the commit before the engine "
+                  "became generic), imported "
                   "with `PYTHONPATH`; after: this checkout. Each side runs in fresh "
                   f"processes, the sides alternated, {rounds} rounds; the best of the rounds "
                   "(population: the fastest of 5 x repeats; warm fit: median of the "
