@@ -83,12 +83,13 @@ def test_predictive_intervals_cover_new_measurements_of_an_exact_model(ggx_data,
 def test_models_discrepancy_column_is_the_calibrations(ggx_data, ggx_validation, ggx_fit):
     """`brdfjax models` fits only the interior folds' processes for its discrepancy column
     (`corrected_cv_errors`); the intervals' calibration fits every fold's and the full
-    data's, padded to another size: both give the same corrected cv_error, the mean of the
-    interior folds' held-out E (each one's own)."""
+    data's, padded to another size: both give the corrected cv_error, the mean of the
+    interior folds' held-out E (to 1e-6: the processes' padding differs)."""
     from brdfjax.prediction.intervals import corrected_cv_errors
 
     calibration = calibrate(ggx_data, ggx_validation, discrepancy="gp", fitted=ggx_fit.vector)
-    interior = [calibration.corrected_errors[label] for label in ("25", "40", "55")]
+    assert calibration.interior_labels == ("25", "40", "55")
+    interior = [calibration.corrected_errors[label] for label in calibration.interior_labels]
     assert calibration.corrected_cv_error == pytest.approx(np.mean(interior), rel=1e-12)
     (column,) = corrected_cv_errors(ggx_data, [ggx_validation])
     assert column == pytest.approx(calibration.corrected_cv_error, rel=1e-6)

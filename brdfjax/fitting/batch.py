@@ -15,8 +15,9 @@ distinct good members), but as one compiled call per chunk of samples:
    `brdfjax.fitting.objective.POINT_BUCKET` with zero-weight copies of the sample's first point
    (as a single fit pads them), then to the chunk's largest sample, and a chunk's
    sample count to a power of two (at most ``chunk_size``) and a multiple of the device
-   count, with copies of its first sample whose results are dropped (``map`` lanes skip
-   them: they cost nothing there). Compilations are so
+   count, with copies of its first sample whose results are dropped (``map`` lanes with
+   ``search_batch`` and ``polish_batch`` 1, the defaults, skip them: they cost nothing
+   there). Compilations are so
    bounded to one per (sample bucket, point bucket, shared geometry or not) and device
    (XLA compiles for each device it runs on, all devices at once; a chunk uses one device
    per `SAMPLES_PER_DEVICE` samples at most, so a small chunk compiles once).
@@ -454,32 +455,31 @@ def across_samples(function, scene, arrays: tuple, batch: int | None, real=None)
         scene: a geometry shared by all samples (arrays (N,)) or one per sample ((B, N)).
         arrays: per-sample arrays, leading axis B.
         batch: samples per vmapped group, or None for all.
+        real: whether each sample is one (B,), or None; with ``batch`` 1 the others (a
+            chunk's padding) are skipped.
 
     Returns:
-        The stacked outputs, leading axis B.
+        The stacked outputs, leading axis B (zeros for a skipped sample).
     """
     shared = scene.cos_theta_r.ndim == 1
     if batch is None:
         return jax.vmap(function, in_axes=(None if shared else 0,) + (0,) * len(arrays))(
             scene, *arrays)
     mapped = arrays if shared else (scene, *arrays)
-    skipping = batch == 1 and real is not None
-    if skipping:
-        mapped = (real, *mapped)
 
     def one(item):
-        flag, item = (item[0], item[1:]) if skipping else (True, item)
+        return function(scene, *item) if shared else function(*item)
 
-        def run():
-            return function(scene, *item) if shared else function(*item)
+    def unless_skipped(item):  # the sample's flag first: zeros where it is False
+        flag, item = item[0], item[1:]
+        zeros = jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), jax.eval_shape(one, item))
+        return jax.lax.cond(flag, lambda: one(item), lambda: zeros)
 
-        if not skipping:
-            return run()
-        zeros = jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), jax.eval_shape(run))
-        return jax.lax.cond(flag, run, lambda: zeros)
-
+    step = one
+    if batch == 1 and real is not None:
+        step, mapped = unless_skipped, (real, *mapped)
     # batch_size=1 would still vmap each sample (over an axis of one), which costs more
-    return jax.lax.map(one, mapped, batch_size=None if batch == 1 else batch)
+    return jax.lax.map(step, mapped, batch_size=None if batch == 1 else batch)
 
 
 def use_every_core() -> list:

@@ -374,6 +374,7 @@ def polytope_least_squares(gram, projections, total, low, high, pairs=()):
             for variable, ratio in terms.items():
                 free[f, variable] = True
                 if variable != k:  # (on its own coordinate a variable's ratio is 1)
+                    assert partner[f, variable] == variable, "a variable has one partner"
                     partner[f, variable], slope_of[f, variable] = k, ratio
             for check in wanted:
                 checks[f, kinds.index(check)] = True
@@ -384,6 +385,8 @@ def polytope_least_squares(gram, projections, total, low, high, pairs=()):
     free, checks = jnp.asarray(free), jnp.asarray(checks)
     pinned = ~free
     # x = a + B y; (B'GB) y = B'(p - G a) over the free y (the others pinned to 0).
+    # Products here and below as broadcast sums, not einsum: XLA on CPU runs a batch of tiny
+    # matrix products (a population times the faces) one small call each, about 10x slower.
     gram_bases = gram[None] + slopes[:, None, :] * gram[:, partner].transpose(1, 0, 2)  # G B
     reduced = gram_bases + slopes[:, :, None] * jnp.take_along_axis(
         gram_bases, jnp.asarray(partner)[:, :, None], axis=1)
