@@ -164,7 +164,7 @@ def calibrate_all(data: Measurements, validations: list, *,
     if discrepancy not in DISCREPANCIES:
         raise ValueError(f"unknown discrepancy {discrepancy!r}; choose one of "
                          f"{', '.join(DISCREPANCIES)}")
-    floor = FLOOR_FRACTION * float(np.median(np.abs(data.brdf)))
+    floor = _floor(data)
     incidences = data.incidences_deg
     common = {"floor": floor, "low": float(incidences.min()),
               "high": float(incidences.max()), "reach": reach_of(incidences)}
@@ -205,7 +205,7 @@ def corrected_cv_errors(data: Measurements, validations: list) -> list[float]:
     model), with only the interior folds' processes fitted (all of them in one batched call;
     the intervals also need the end folds' and the full data's, `calibrate_all`). NaN for a
     model without interior folds. Call it from one thread, as `calibrate_all`."""
-    floor = FLOOR_FRACTION * float(np.median(np.abs(data.brdf)))
+    floor = _floor(data)
     return [float(np.mean([_corrected_error(c, data) for c in folds])) if folds else np.nan
             for folds, _ in _corrected_folds(data, [(v, None) for v in validations], floor,
                                              interior_only=True)]
@@ -232,32 +232,34 @@ def _corrected_folds(data: Measurements, validations: list, floor: float, *,
     from brdfjax.fitting.objective import brdf_values, prepare
     from brdfjax.models import get
 
-    chosen = [[f for f in v.folds if f.interior or not interior_only] for v, _ in validations]
-    values, masks = [], []
-    for (validation, fitted), folds in zip(validations, chosen):
+    per_model, values, masks = [], [], []
+    for validation, fitted in validations:
         model = get(validation.model)
         geometry = prepare(data, model)
+        folds = [f for f in validation.folds if f.interior or not interior_only]
+        held = [np.isin(np.arange(len(data)), f.index) for f in folds]
         vectors = [f.params for f in folds] + ([] if interior_only else [fitted])
-        for vector in vectors:
-            values.append(np.asarray(brdf_values(np.asarray(vector, float), geometry, model)))
-            masks.append(np.ones(len(data), bool))
-        for mask, fold in zip(masks[-len(vectors):], folds):
-            mask[fold.index] = False
-    processes = iter(_fit_processes(data, values, masks, floor))
-    values = iter(values)
+        values += [np.asarray(brdf_values(np.asarray(v, float), geometry, model))
+                   for v in vectors]
+        masks += [~h for h in held] + ([] if interior_only else [np.ones(len(data), bool)])
+        per_model.append((folds, held, len(vectors)))
+    processes, values = iter(_fit_processes(data, values, masks, floor)), iter(values)
     out = []
-    for folds in chosen:
+    for folds, held, count in per_model:
+        sets = [(next(values), next(processes)) for _ in range(count)]  # this model's
         corrected = []
-        for fold, value, process in zip(folds, values, processes):
-            held = np.isin(np.arange(len(data)), fold.index)
-            mu, sigma = process.predict(data.theta_i[held], data.theta_r[held],
-                                        data.phi_r[held])
-            corrected.append(_Corrected(fold, value, held, mu, sigma,
-                                        process.correct(value[held], mu)))
-        if not interior_only:
-            next(values)
-        out.append((corrected, None if interior_only else next(processes)))
+        for fold, mask, (value, process) in zip(folds, held, sets):
+            mu, sigma = process.predict(data.theta_i[mask], data.theta_r[mask],
+                                        data.phi_r[mask])
+            corrected.append(_Corrected(fold, value, mask, mu, sigma,
+                                        process.correct(value[mask], mu)))
+        out.append((corrected, None if interior_only else sets[-1][1]))
     return out
+
+
+def _floor(data: Measurements) -> float:
+    """The absolute floor of the scores' scale: `FLOOR_FRACTION` of the median |BRDF|."""
+    return FLOOR_FRACTION * float(np.median(np.abs(data.brdf)))
 
 
 def _corrected_error(corrected: _Corrected, data: Measurements) -> float:
