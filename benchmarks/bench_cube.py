@@ -31,6 +31,7 @@ the slow lanes moved to a second batch; and the measured time of the vmapped str
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import os
 import resource
@@ -308,10 +309,13 @@ def bench_rossli(count: int, baseline: Path | None, quick: bool) -> None:
         apart = {g: {n: float(np.max(np.abs(a[n] - b[n]) / np.where(b[n] == 0, 1, abs(b[n]))))
                      for n in ("error", "f_iso", "f_vol", "f_geo")}
                  for g, (b, a) in compared.items()}
+    def shown(walls):
+        return " / ".join(f"{w:.2f}" for w in walls) if walls else "-"
+
     table = "\n".join(
-        f"| {geometry} | {label} | {' / '.join(f'{w:.2f}' for w in walls)} | "
-        f"{' / '.join(f'{w:.2f}' for w in worker['fit_batch'])} |"
-        for geometry, label, walls, worker in rows)
+        f"| {geometry} | {label} | {shown(walls)} | {shown(worker['fit_batch'])} | "
+        f"{shown(worker.get('table'))} |" for geometry, label, walls, worker in rows)
+    started = start_up()
     peer_rows = "\n".join(
         f"| {geometry} | {name} | {peer['seconds']:.2f} | {peer['difference']:.1e} |"
         for geometry, found in peers.items() for name, peer in found.items())
@@ -326,12 +330,14 @@ def bench_rossli(count: int, baseline: Path | None, quick: bool) -> None:
         "moved by up to 3 deg (per-sample geometry, (N, P) angles).\n\n"
         "Wall seconds, two runs each: the warm command (a first run filled the caches; "
         "results deleted between runs; process start-up, reading and writing included, "
-        f"the default `--chunk-size`, {CUBE_CHUNK} for a cube) and `brdfjax.fit_batch` of the same samples in a warm process "
-        "(default `chunk_size` 256, one CPU device per core). *before*: the baseline "
+        f"the default `--chunk-size`, {CUBE_CHUNK} for a cube) and `brdfjax.fit_batch` of "
+        "the same samples in a warm process (default `chunk_size` 256, one CPU device per "
+        "core), returning a `FitResult` per sample or, with `table=True` (what the command "
+        "runs), the numbers of every sample as arrays. *before*: the baseline "
         "checkout" + (f" `{_commit(baseline)}`" if baseline else "") + "; *after*: this "
         "one" + (f" `{_commit(REPO)}`" if baseline else "") + ".\n\n"
-        "| geometry | code | command (s) | fit_batch (s) |\n|---|---|---|---|\n"
-        + table + "\n\n"
+        "| geometry | code | command (s) | fit_batch (s) | fit_batch, table (s) |\n"
+        "|---|---|---|---|---|\n" + table + "\n\n"
         + ("".join(f"- {g} geometry, results before and after: " + (
             "identical (weights, E, status).\n" if same[g] else
             "statuses equal; largest relative difference "
@@ -339,7 +345,10 @@ def bench_rossli(count: int, baseline: Path | None, quick: bool) -> None:
             + " (the chunks differ in size, and XLA's vectorised solve with them).\n")
             for g in same) if baseline else "")
         + f"- Target of 2 s for the warm command: **{'met' if best <= 2 else 'not met'}** "
-        f"(best {best:.2f} s, shared geometry).\n\n"
+        f"(best {best:.2f} s, shared geometry). A process that only imports JAX and h5py "
+        f"and starts JAX (`python -c 'import h5py, jax; jax.devices()'`) takes "
+        f"{shown(started)} s here, in the same run: that much of every command is "
+        "start-up.\n\n"
         "What a user would write instead, in the same process, on the same samples "
         "(the kernels computed once per distinct geometry and not timed, as brdfjax's "
         "geometry is in its times): SciPy's bounded `lsq_linear` per pixel (the same "
@@ -374,15 +383,33 @@ def rossli_worker(path, tree) -> None:
     enable()
     with Cube(path) as cube:
         samples = cube.read(np.arange(cube.count))
-    times = []
-    for _ in range(3):  # the first loads the compiled stages
-        tic = time.perf_counter()
-        results = fit_batch(samples, model="ross-li")
-        times.append(time.perf_counter() - tic)
+    def timed(**options) -> tuple[list, object]:
+        times = []
+        for _ in range(3):  # the first loads the compiled stages
+            tic = time.perf_counter()
+            results = fit_batch(samples, model="ross-li", **options)
+            times.append(time.perf_counter() - tic)
+        return times[1:], results
+
+    times, results = timed()
+    # The table (every sample's numbers formed a chunk at once), where the checkout has it.
+    table = (timed(table=True)[0] if "table" in inspect.signature(fit_batch).parameters
+             else None)
     errors = np.array([r.error for r in results])
     inside = np.array([not r.at_bounds for r in results])
-    print(json.dumps({"fit_batch": times[1:], "peers": least_squares_peers(samples, errors,
-                                                                           inside)}))
+    print(json.dumps({"fit_batch": times, "table": table,
+                      "peers": least_squares_peers(samples, errors, inside)}))
+
+
+def start_up() -> list[float]:
+    """Wall seconds of a Python process that only imports what the command needs first
+    (JAX, h5py) and starts JAX: the part of the command no batch code can shorten."""
+    walls = []
+    for _ in range(3):
+        tic = time.perf_counter()
+        subprocess.run([sys.executable, "-c", "import h5py, jax; jax.devices()"], check=True)
+        walls.append(time.perf_counter() - tic)
+    return walls
 
 
 def least_squares_peers(samples, errors, inside) -> dict:

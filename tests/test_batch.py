@@ -87,6 +87,18 @@ def test_batched_fits_equal_single_fits_and_a_nan_sample_fails_alone(mixed_batch
         assert len(batched.residuals) == len(data)  # no padding leaks into the result
 
 
+def test_the_table_holds_what_the_results_report(mixed_batch):
+    """``table=True`` forms each chunk's numbers at once, from the same fits: the reported
+    parameters bit for bit, E to rounding (the table divides by normalised weights), and
+    the same status and message, the failed sample's included."""
+    samples, results = mixed_batch
+    table = fit_batch(samples, table=True, **SMALL)
+    np.testing.assert_array_equal(table.params, [r.vector for r in results])
+    np.testing.assert_allclose(table.error, [r.error for r in results], rtol=1e-13)
+    assert list(table.status) == [r.status for r in results]
+    assert list(table.message) == [r.message for r in results]
+
+
 def test_vmap_lanes_end_where_the_per_sample_path_ends(mixed_batch, monkeypatch):
     """The accelerator's lanes, run here on the CPU: every sample and each of its LM starts
     side by side, starts still running after `LANE_STEPS` resumed in a second batch. With

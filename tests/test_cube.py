@@ -213,3 +213,23 @@ def test_dask_fits_the_cube_chunk_by_chunk(cube, reference, dask_scheduler, tmp_
     final, whole = read(out), read(reference[0])
     for name in final:
         np.testing.assert_array_equal(final[name], whole[name], err_msg=name)
+
+
+def test_a_block_with_uncertainty_keeps_its_fits_and_adds_their_std(cube):
+    """A cube's block with ``--uncertainty laplace`` goes through the per-sample results
+    (the Laplace approximation needs them): the same numbers as the table formed at once (E to
+    rounding),
+    with each fitted sample's standard deviations, and none for the failed one."""
+    from brdfjax.fitting.cluster import fit_chunk, fit_cube_chunk
+
+    with Cube(cube) as opened:
+        samples = opened.read([0, 7])
+    plain = fit_cube_chunk(samples, SMALL)
+    laplace = fit_cube_chunk(samples, {**SMALL, "uncertainty": "laplace"})
+    for name in ("params", "status", "message"):
+        np.testing.assert_array_equal(laplace[name], plain[name], err_msg=name)
+    np.testing.assert_allclose(laplace["error"], plain["error"], rtol=1e-13)  # rounding
+    assert list(plain["status"]) == ["converged", "failed"]
+    assert np.all(np.isnan(plain["std"])) and np.all(np.isnan(laplace["std"][1]))
+    (summary, _) = fit_chunk(samples, {**SMALL, "uncertainty": "laplace"})
+    np.testing.assert_array_equal(laplace["std"][0], list(summary["std"].values()))

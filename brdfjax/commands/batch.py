@@ -367,12 +367,12 @@ def run_batch(args) -> int:
     progress = tqdm(total=len(pending), unit="file", desc="brdfjax batch", file=sys.stderr)
     unread = {}
 
-    def record(batch: dict) -> None:
+    def record(keys, results) -> None:
         """Save a chunk's results and the unreadable files met so far.
 
         The JSON files are written before the CSV, so a file listed there has its JSON.
         """
-        batch = {**unread, **batch}
+        batch = {**unread, **dict(zip(keys, results))}
         unread.clear()
         if args.json:
             _write_json(args.json, batch)
@@ -387,7 +387,7 @@ def run_batch(args) -> int:
     chunks = _chunks(pending, args, unread, model.names)
     try:
         lost = _fit_chunks(chunks, args.scheduler, options, record)
-        record({})  # the last unreadable files, if no chunk came after them
+        record([], [])  # the last unreadable files, if no chunk came after them
     finally:
         progress.close()
     if args.plot:
@@ -454,11 +454,11 @@ def run_cube(args) -> int:
             chunks = ([(int(i), data) for i, data in zip(block, cube.read(block))]
                       for block in blocks)
 
-            def record(batch: dict) -> None:
-                results.record(list(batch), list(batch.values()))
-                progress.update(len(batch))
+            def record(indices, numbers: dict) -> None:
+                results.record(indices, numbers)
+                progress.update(len(indices))
 
-            lost = _fit_chunks(chunks, args.scheduler, options, record)
+            lost = _fit_chunks(chunks, args.scheduler, options, record, cube=True)
         counts = results.assemble(cube.path, cube.names, uncertainty=bool(args.uncertainty)) \
             if not lost else None
     if lost:
@@ -602,32 +602,35 @@ def choose_model(keys, args, read=None) -> str:
     return best
 
 
-def _fit_chunks(chunks, scheduler, options, record) -> list:
-    """Fit every chunk here or on the cluster, recording each as it finishes.
+def _fit_chunks(chunks, scheduler, options, record, cube: bool = False) -> list:
+    """Fit every chunk of ``(key, measurements)`` pairs here or on the cluster, calling
+    ``record(keys, results)`` for each as it finishes: results of `fit_chunk`, or for a
+    ``cube`` of `fit_cube_chunk`.
 
     Returns:
         The errors of chunks the cluster could not fit (nothing is recorded for them, so
         a rerun fits them again).
     """
-    from brdfjax.fitting.cluster import fit_chunk, fit_on_cluster
+    from brdfjax.fitting.cluster import fit_chunk, fit_cube_chunk, fit_on_cluster
 
+    task = fit_cube_chunk if cube else fit_chunk
     if scheduler is None:
         for chunk in chunks:
-            files, samples = zip(*chunk)
-            record(dict(zip(files, fit_chunk(list(samples), options))))
+            keys, samples = zip(*chunk)
+            record(list(keys), task(list(samples), options))
         return []
     sent, lost = [], []
 
     def remember(chunks):
         for chunk in chunks:
-            sent.append([file for file, _ in chunk])
+            sent.append([key for key, _ in chunk])
             yield [data for _, data in chunk]
 
-    for number, results in fit_on_cluster(remember(chunks), scheduler, options):
+    for number, results in fit_on_cluster(remember(chunks), scheduler, options, task):
         if isinstance(results, BaseException):
-            lost.append(f"{len(sent[number])} files from {sent[number][0]}: {results}")
+            lost.append(f"{len(sent[number])} samples from {sent[number][0]}: {results}")
         else:
-            record(dict(zip(sent[number], results)))
+            record(sent[number], results)
     return lost
 
 

@@ -257,8 +257,9 @@ def validate(data: Measurements, path=None, lines=None, geometry_only: bool = Fa
         values = getattr(data, name)
         if values is None:
             continue
-        bad = np.flatnonzero(~np.isfinite(values))
-        if bad.size:
+        finite = np.isfinite(values)
+        if not finite.all():
+            bad = np.flatnonzero(~finite)
             fail(bad[0], f"{name} is {values[bad[0]]}", "every value must be a finite number")
     if not angles_checked:
         _check_angles(data, fail)
@@ -270,9 +271,10 @@ def validate(data: Measurements, path=None, lines=None, geometry_only: bool = Fa
                      f"1e{OUTLIER_DECADES} times the median |brdf| "
                      f"({np.median(np.abs(data.brdf)):.3g}); {bad.size} such value(s)",
              "a unit or transcription error? fix or remove the value(s) before fitting")
-    scale = max(float(np.max(np.abs(data.brdf))), 1e-300)
-    bad = np.flatnonzero(data.brdf < -NEGATIVE_TOLERANCE * scale)
-    if bad.size:
+    scale = max(float(np.abs(data.brdf).max()), 1e-300)
+    negative = data.brdf < -NEGATIVE_TOLERANCE * scale
+    if negative.any():
+        bad = np.flatnonzero(negative)
         fail(bad[0], f"brdf = {data.brdf[bad[0]]:g} is negative beyond noise",
              f"values below -{NEGATIVE_TOLERANCE:g} x the largest |brdf| are not noise: "
              "check the blank subtraction or the sign convention")
@@ -312,7 +314,8 @@ def outliers(brdf) -> np.ndarray:
     if not median > 0:
         return np.array([], dtype=int)
     with np.errstate(over="ignore"):
-        return np.flatnonzero(magnitude > median * 10.0**OUTLIER_DECADES)
+        beyond = magnitude > median * 10.0**OUTLIER_DECADES
+    return np.flatnonzero(beyond) if beyond.any() else np.array([], dtype=int)
 
 
 def _median(values: np.ndarray) -> float:

@@ -68,6 +68,7 @@ import time
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from functools import partial
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -122,7 +123,8 @@ def fit_batch(samples: Sequence[Measurements], *, model: str | Model | None = No
               chunk_size: int = 256,
               lanes: str = "auto",
               search_batch: int | None = SEARCH_BATCH, polish_batch: int | None = POLISH_BATCH,
-              devices=None, **options) -> list[FitResult]:
+              devices=None, table: bool = False,
+              **options) -> list[FitResult] | BatchTable:
     """Fit a model to every sample of a batch, one compiled call per chunk.
 
     Each sample gets the fit that ``brdfjax.fit(sample, model=model, seed=seed)`` gives it (hybrid
@@ -148,13 +150,17 @@ def fit_batch(samples: Sequence[Measurements], *, model: str | Model | None = No
             ``vmap`` in the genetic search and in the LM polish (`across_samples`); None
             for the whole chunk.
         devices: the devices to split each chunk over (default: ``jax.devices()``).
+        table: return a `BatchTable` (every sample's parameters, E, status and message as
+            arrays, formed for a whole chunk at once) instead of a `FitResult` per sample:
+            the same numbers without the per-sample Python, which costs more than the fit
+            of a small linear sample (Ross-Li pixels).
         **options: ``starts``, ``population_size``, ``max_generations``, ``max_steps``,
             ``config``, ``constants``: as in `brdfjax.fitting.fit.fit`, with its defaults
             (`FIT_DEFAULTS`).
 
     Returns:
-        One `FitResult` per sample, in the order given. ``timings["total"]`` is the
-        sample's share of its chunk's wall time.
+        One `FitResult` per sample, in the order given (``timings["total"]`` is the
+        sample's share of its chunk's wall time); or with ``table``, one `BatchTable`.
     """
     unknown = set(options) - set(FIT_DEFAULTS)
     if unknown:
@@ -174,7 +180,66 @@ def fit_batch(samples: Sequence[Measurements], *, model: str | Model | None = No
     resumed_steps = 0  # the convergence round's steps left to the slow lanes' second batch
     if side_by_side and options["max_steps"] > LANE_STEPS:
         settings["max_steps"], resumed_steps = LANE_STEPS, options["max_steps"] - LANE_STEPS
+    chunks = _chunk_fits(samples, model, seeds, bounds, config, devices, chunk_size, settings,
+                         resumed_steps)
+    if table:
+        return _table(chunks, len(samples), model, options["max_steps"])
     results: list[FitResult | None] = [None] * len(samples)
+    for chunk in chunks:
+        for index, message in chunk.failed.items():
+            results[index] = _failed(samples[index], message, bounds, model)
+        searched, polished = _lanes(chunk.searched), _lanes(chunk.polished)
+        for lane, index in enumerate(chunk.indices):
+            results[index] = _sample_result(
+                samples[index], searched[lane], polished[lane], chunk.params[lane],
+                chunk.status[lane], chunk.evaluations[lane], chunk.fitted[lane],
+                chunk.units[lane], options["population_size"],
+                chunk.seconds / len(chunk.indices), options["max_steps"], bounds, model)
+    return results
+
+
+class BatchTable(NamedTuple):
+    """The numbers of a batch, one row per sample in the order given (``fit_batch(...,
+    table=True)``): what `FitResult` reports as ``params``, ``error``, ``status`` and
+    ``message``.
+
+    Attributes:
+        params: (N, P) fitted parameters (NaN where the data failed their checks).
+        error: (N,) E of Eq. (6), a fraction.
+        status: (N,) ``converged``, ``max_steps`` or ``failed``.
+        message: (N,) why the status, where there is more to say ("" elsewhere).
+    """
+
+    params: np.ndarray
+    error: np.ndarray
+    status: np.ndarray
+    message: np.ndarray
+
+
+class _ChunkFit(NamedTuple):
+    """One chunk of `_chunk_fits`. The samples fitted (``indices``, in lane order), the
+    samples that failed their checks (``failed``, index: the reason), the fitted ones'
+    batched search and polish (host arrays, leading axis the samples), the polish's
+    `polish_summary` (``params``, ``status``, ``evaluations``; ``params`` as reported,
+    `brdfjax.models.Model.canonical`), the fitted projected BRDF and unit-cube coordinates
+    (`_fitted`), the padded chunk (`_run_chunk`) and its wall seconds."""
+
+    indices: list
+    failed: dict
+    searched: EvolveResult | None = None
+    polished: PolishResult | None = None
+    params: np.ndarray | None = None
+    status: np.ndarray | None = None
+    evaluations: np.ndarray | None = None
+    fitted: np.ndarray | None = None
+    units: np.ndarray | None = None
+    padded: Problem | None = None
+    seconds: float = 0.0
+
+
+def _chunk_fits(samples, model, seeds, bounds, config, devices, chunk_size, settings,
+                resumed_steps):
+    """Check, prepare and fit the samples a chunk at a time; yield a `_ChunkFit` each."""
     # Stable sort by geometry, so that samples sharing one land in the same chunks.
     keys = [_geometry_key(data) for data in samples]
     rank = {key: number for number, key in enumerate(dict.fromkeys(keys))}
@@ -182,7 +247,7 @@ def fit_batch(samples: Sequence[Measurements], *, model: str | Model | None = No
     for begin in range(0, len(order), chunk_size):
         # Problems are prepared chunk by chunk, so host and device memory stay bounded.
         # Host arrays throughout: the chunk goes to the devices in one transfer.
-        problems, scenes = {}, {}
+        problems, scenes, failed = {}, {}, {}
         for index in order[begin:begin + chunk_size]:
             data = samples[index]
             try:
@@ -193,25 +258,40 @@ def fit_batch(samples: Sequence[Measurements], *, model: str | Model | None = No
                 problems[index] = Problem(scenes[keys[index]],
                                           *normalised_targets(data, points), model)
             except (DataError, ValueError) as error:
-                results[index] = _failed(data, str(error), bounds, model)
+                failed[index] = str(error)
         if not problems:
+            yield _ChunkFit([], failed)
             continue
-        chunk = list(problems)
         tic = time.perf_counter()
-        (searched, polished), padded = _run_chunk(list(problems.values()), seeds[chunk],
+        indices = list(problems)
+        (searched, polished), padded = _run_chunk(list(problems.values()), seeds[indices],
                                                   bounds, config, devices, chunk_size, settings)
         if resumed_steps and model.searched_size:
             polished = _resume_slow(polished, padded, bounds, devices[0], resumed_steps)
-        searched, polished = _lanes(searched), _lanes(polished)
-        summaries = [polish_summary(lane) for lane in polished]
-        fitted, units = _fitted([best for best, *_ in summaries], padded, bounds)
-        share = (time.perf_counter() - tic) / len(chunk)
-        for lane, index in enumerate(chunk):
-            results[index] = _sample_result(
-                samples[index], searched[lane], polished[lane], summaries[lane], fitted[lane],
-                units[lane], options["population_size"], share, options["max_steps"], bounds,
-                model)
-    return results
+        best, status, evaluations = polish_summary(polished)
+        params, fitted, units = _fitted(best, padded, bounds)
+        yield _ChunkFit(indices, failed, searched, polished, params, status, evaluations,
+                        fitted, units, padded, time.perf_counter() - tic)
+
+
+def _table(chunks, count: int, model: Model, max_steps: int) -> BatchTable:
+    """The `BatchTable` of `_chunk_fits`, each chunk's numbers formed at once: the E of
+    `fit_result` (to rounding: there the weights are not normalised)."""
+    table = BatchTable(np.full((count, model.size), np.nan), np.full(count, np.nan),
+                       np.full(count, "failed", dtype="U9"), np.full(count, "", dtype=object))
+    for chunk in chunks:
+        table.message[list(chunk.failed)] = list(chunk.failed.values())
+        if not chunk.indices:
+            continue
+        lanes = len(chunk.indices)
+        target, weight = chunk.padded.target[:lanes], chunk.padded.weight[:lanes]
+        difference = chunk.fitted - target
+        table.params[chunk.indices] = chunk.params
+        table.error[chunk.indices] = (np.sum(weight * difference * difference, axis=1)
+                                      / np.sum(weight * target * target, axis=1))
+        table.status[chunk.indices] = chunk.status
+        table.message[chunk.indices] = [_status_message(s, max_steps) for s in chunk.status]
+    return table
 
 
 def lane_choice(lanes: str, devices) -> str:
@@ -288,20 +368,25 @@ def _failed(data: Measurements, message: str, bounds: Bounds, model: Model) -> F
                      validation_incidences=[], bounds=bounds, model=model, message=message)
 
 
-def _sample_result(data, searched, polished, summary, fitted, unit, population_size, seconds,
-                   max_steps, bounds, model) -> FitResult:
+def _sample_result(data, searched, polished, best, status, lm_evaluations, fitted, unit,
+                   population_size, seconds, max_steps, bounds, model) -> FitResult:
     """One sample's `FitResult` from its lanes of the batched search and polish, the
-    polish's `polish_summary`, and its fitted projected BRDF and unit-cube coordinates
-    (`_fitted`)."""
+    polish's `polish_summary` (``best``, ``status``, ``lm_evaluations``), and its fitted
+    projected BRDF and unit-cube coordinates (`_fitted`)."""
     history, evaluations = search_summary(searched, population_size)
-    best, status, lm_evaluations = summary
-    message = {"max_steps": f"Levenberg-Marquardt stopped at its cap of {max_steps} steps "
-                            "before meeting its tolerance",
-               "failed": "no start reached a finite E"}.get(status, "")
     return fit_result(data, data, None, best, bounds, model, fitted=fitted, unit=unit,
-                      method="hybrid", status=status, evaluations=evaluations + lm_evaluations,
+                      method="hybrid", status=str(status),
+                      evaluations=evaluations + int(lm_evaluations),
                       lm_steps=polished.steps, lm_success=polished.success,
-                      timings={"total": seconds}, history=history, message=message)
+                      timings={"total": seconds}, history=history,
+                      message=_status_message(status, max_steps))
+
+
+def _status_message(status: str, max_steps: int) -> str:
+    """`FitResult.message` of a fitted sample: why its status, where there is more to say."""
+    return {"max_steps": f"Levenberg-Marquardt stopped at its cap of {max_steps} steps "
+                         "before meeting its tolerance",
+            "failed": "no start reached a finite E"}.get(str(status), "")
 
 
 def _run_chunk(problems: list[Problem], seeds, bounds, config, devices, chunk_size, settings):
@@ -315,8 +400,10 @@ def _run_chunk(problems: list[Problem], seeds, bounds, config, devices, chunk_si
     count = len(problems)
     # A device per SAMPLES_PER_DEVICE samples at most: XLA compiles a shape once per device,
     # and a small chunk (a cross-validation's folds, a few files) gains less from a second
-    # device than that compilation (or its load from the cache) costs.
-    devices = devices[:max(1, count // SAMPLES_PER_DEVICE)]
+    # device than that compilation (or its load from the cache) costs. So does any chunk of
+    # a linear model: one exact solve per sample, 1024 Ross-Li pixels in milliseconds.
+    linear = problems[0].model.searched_size == 0
+    devices = devices[:1 if linear else max(1, count // SAMPLES_PER_DEVICE)]
     lanes = min(chunk_size, _power_of_two(count))
     lanes = -(-max(lanes, count) // len(devices)) * len(devices)
     points = max(p.target.size for p in problems)  # each already a multiple of POINT_BUCKET
@@ -367,11 +454,11 @@ def _filled(count: int, lanes: int) -> list[int]:
     return list(range(count)) + [0] * (lanes - count)
 
 
-def _fitted(best: list, chunk: Problem, bounds: Bounds) -> tuple[np.ndarray, np.ndarray]:
-    """The projected BRDF on its points (samples, N) and the unit-cube coordinates
-    (samples, P) of each sample's best parameters as `fit_result` reports them
-    (`brdfjax.models.Model.canonical`), for the whole padded ``chunk`` (`_run_chunk`) at
-    once: the model in one compiled call.
+def _fitted(best, chunk: Problem, bounds: Bounds) -> tuple[np.ndarray, ...]:
+    """Each sample's best parameters (samples, P) as `fit_result` reports them
+    (`brdfjax.models.Model.canonical`), with their projected BRDF on its points (samples,
+    N) and unit-cube coordinates (samples, P), for the whole padded ``chunk`` (`_run_chunk`)
+    at once: the model in one compiled call.
 
     A shared scene is broadcast to every lane: vmapped over a scene of its own, each lane
     computes exactly what `brdfjax.fitting.objective.projected` computes for it alone (over
@@ -381,7 +468,7 @@ def _fitted(best: list, chunk: Problem, bounds: Bounds) -> tuple[np.ndarray, np.
     vectors = np.stack([model.canonical(vector, bounds) for vector in best])
     scene = jax.tree.map(lambda x: np.broadcast_to(x, (lanes, x.shape[-1])), chunk.scene)
     values = _projected_lanes(vectors[_filled(len(best), lanes)], scene, model)
-    return np.asarray(values)[:len(best)], to_unit(vectors, bounds)
+    return vectors, np.asarray(values)[:len(best)], to_unit(vectors, bounds)
 
 
 @stage

@@ -55,6 +55,33 @@ def fit_chunk(samples: list, options: dict) -> list[dict]:
     return summaries
 
 
+def fit_cube_chunk(samples: list, options: dict) -> dict:
+    """`fit_chunk` for a block of a cube: the numbers its results file holds
+    (`brdfjax.data.formats.cube.CubeResults.record`), as arrays: ``params`` and ``std``
+    (n, P), ``error``, ``status`` and ``message`` (n,). Without ``uncertainty`` they come
+    from `brdfjax.fitting.batch.fit_batch`'s table, formed for the whole block at once."""
+    import numpy as np
+
+    from brdfjax.fitting.batch import fit_batch
+    from brdfjax.fitting.bounds import make_bounds
+    from brdfjax.models import get
+
+    if options.get("uncertainty") is None:
+        options = dict(options)
+        options.pop("uncertainty", None)
+        bounds = make_bounds(options.pop("ranges", {}), model=options.get("model"))
+        table = fit_batch(samples, bounds=bounds, table=True, **options)
+        return {**table._asdict(), "std": np.full_like(table.params, np.nan)}
+    summaries = fit_chunk(samples, options)
+    names = get(options.get("model")).names
+    return {"params": np.array([[s["params"][n] for n in names] for s in summaries], float),
+            "std": np.array([[s.get("std", {}).get(n, np.nan) for n in names]
+                             for s in summaries], float),
+            "error": np.array([s["error"] for s in summaries], float),
+            "status": np.array([s["status"] for s in summaries]),
+            "message": np.array([s["message"] for s in summaries], dtype=object)}
+
+
 def _add_laplace(samples, results, summaries, bounds) -> None:
     """Put the Laplace standard deviations and status into each fitted sample's summary."""
     import warnings
@@ -77,14 +104,15 @@ def require_dask() -> None:
     require("dask.distributed", "batch", "--scheduler")
 
 
-def fit_on_cluster(chunks: Iterable[list], scheduler: str,
-                   options: dict) -> Iterator[tuple[int, list[dict] | BaseException]]:
+def fit_on_cluster(chunks: Iterable[list], scheduler: str, options: dict,
+                   task=fit_chunk) -> Iterator[tuple[int, list[dict] | BaseException]]:
     """Send every chunk to a Dask cluster; yield each chunk's results as soon as it is done.
 
     Args:
         chunks: lists of `~brdfjax.data.measurements.Measurements`; each becomes one task.
         scheduler: the scheduler's address, e.g. ``tcp://10.0.0.5:8786``.
         options: as for `fit_chunk`.
+        task: what each chunk runs: `fit_chunk`, or `fit_cube_chunk` for a cube's blocks.
 
     Yields:
         ``(chunk number, results)`` in order of completion; ``results`` is the exception
@@ -112,7 +140,7 @@ def fit_on_cluster(chunks: Iterable[list], scheduler: str,
             number, chunk = next(chunks, (None, None))
             if chunk is None:
                 return False
-            future = client.submit(fit_chunk, chunk, options, pure=False)
+            future = client.submit(task, chunk, options, pure=False)
             numbers[future] = number
             running.add(future)
             return True

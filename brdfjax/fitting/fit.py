@@ -351,17 +351,25 @@ def polish_summary(polished: PolishResult) -> tuple[np.ndarray, str, int]:
     """The best polished start, the fit's status, and LM's count of model evaluations.
 
     Args:
-        polished: the surviving starts of one `brdfjax.fitting.polish.polish` (host or device).
+        polished: the surviving starts of one `brdfjax.fitting.polish.polish` (host or
+            device), or of many fits along leading axes (`brdfjax.fit_batch`'s samples).
 
     Returns:
         The parameters (P,) of the start with the lowest E; ``converged``, ``max_steps``
-        or ``failed`` (no start reached a finite E); and the evaluations taken.
+        or ``failed`` (no start reached a finite E); and the evaluations taken. Over
+        leading axes, arrays of them.
     """
     errors = np.asarray(polished.errors)
-    pick = int(np.argmin(errors))
-    status = ("failed" if not np.isfinite(errors[pick]) else
-              "converged" if np.asarray(polished.success)[pick] else "max_steps")
-    return np.asarray(polished.params, dtype=float)[pick], status, int(polished.evaluations)
+    pick = np.argmin(errors, axis=-1)[..., None]
+    lowest = np.take_along_axis(errors, pick, axis=-1)[..., 0]
+    success = np.take_along_axis(np.asarray(polished.success), pick, axis=-1)[..., 0]
+    status = np.where(~np.isfinite(lowest), "failed",
+                      np.where(success, "converged", "max_steps"))
+    best = np.take_along_axis(np.asarray(polished.params, dtype=float), pick[..., None],
+                              axis=-2)[..., 0, :]
+    if errors.ndim == 1:
+        return best, str(status), int(polished.evaluations)
+    return best, status, np.asarray(polished.evaluations)
 
 
 def _lm_starts(start, count, seed, bounds):

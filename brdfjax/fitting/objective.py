@@ -63,6 +63,8 @@ def bucket(count: int) -> int:
 def pad(values, length: int, fill=None) -> np.ndarray:
     """``values`` (N,) extended to ``length`` with ``fill``, or with its first value."""
     values = np.asarray(values)
+    if values.size == length:
+        return values
     extra = np.full(length - values.size, values[0] if fill is None else fill,
                     dtype=values.dtype)
     return np.concatenate([values, extra])

@@ -221,17 +221,14 @@ class CubeResults:
         self.parts.mkdir(parents=True)
         _write_whole(self.parts / "options.json", self.settings.encode())
 
-    def record(self, indices, summaries: list[dict]) -> None:
-        """Journal one block: its sample indices and their
-        `brdfjax.fitting.fit.FitResult.to_dict`."""
-        params = np.array([[s["params"][n] for n in self.names] for s in summaries], float)
-        std = np.array([[s.get("std", {}).get(n, np.nan) for n in self.names]
-                        for s in summaries], float)
-        block = {"index": np.asarray(indices, dtype=np.int64), "params": params,
-                 "error": np.array([s["error"] for s in summaries], float),
-                 "status": np.array([s["status"] for s in summaries], dtype="U9"),
-                 "message": np.array([s["message"] for s in summaries], dtype=str),
-                 "std": std}
+    def record(self, indices, numbers: dict) -> None:
+        """Journal one block: its sample indices and their numbers
+        (`brdfjax.fitting.cluster.fit_cube_chunk`)."""
+        block = {"index": np.asarray(indices, dtype=np.int64),
+                 **{name: np.asarray(numbers[name], dtype=float)
+                    for name in ("params", "error", "std")},
+                 "status": np.asarray(numbers["status"], dtype="U9"),
+                 "message": np.asarray(numbers["message"], dtype=str)}
         first = int(np.min(indices))
         temporary = self.parts / f".{first:012d}.{secrets.token_hex(4)}.tmp"
         with open(temporary, "wb") as stream:
