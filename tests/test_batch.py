@@ -158,6 +158,28 @@ def test_linear_fits_of_shared_and_own_geometries_equal_single_fits():
         assert batched.train_incidences == single.train_incidences
 
 
+def test_geometries_computed_at_once_give_the_fits_of_one_at_a_time(monkeypatch):
+    """From `VECTOR_GEOMETRIES` distinct geometries a chunk computes them in one vmapped
+    call per point count and plane (lowered here so that 6 pixels take that path, in two
+    groups: four with their own angles, two in the plane): the fits of a call per
+    geometry, each pixel's parameters and E to 1e-12."""
+    import dataclasses
+
+    from brdfjax.fitting import batch
+
+    samples = [modis_like(seed, (0.3, 0.1, 0.02), own_geometry=True) for seed in range(6)]
+    for k in (4, 5):  # in the plane: azimuths 0 and 180 deg
+        samples[k] = dataclasses.replace(samples[k], phi_r=np.where(
+            samples[k].phi_r < np.pi / 2, 0.0, np.pi))
+    assert [data.in_plane for data in samples] == [False] * 4 + [True] * 2
+    one_by_one = fit_batch(samples, model="ross-li", table=True)
+    monkeypatch.setattr(batch, "VECTOR_GEOMETRIES", 2)
+    at_once = fit_batch(samples, model="ross-li", table=True)
+    np.testing.assert_allclose(at_once.params, one_by_one.params, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(at_once.error, one_by_one.error, rtol=1e-12)
+    assert list(at_once.status) == ["converged"] * 6
+
+
 def test_laplace_uncertainty_is_added_to_fitted_samples_only(mixed_batch, single_fits):
     """Each fitted sample's batch summary carries the Laplace approximation of its single
     fit: the same status and the same standard deviations (both polish to the same mode)."""

@@ -7,10 +7,11 @@ distinct good members), but as one compiled call per chunk of samples:
 1. Each sample is checked (`brdfjax.data.measurements.validate`); one that fails becomes a
    ``failed`` result carrying the reason and never reaches the compiled fit, so it cannot
    spoil the others. Inside the fit every sample is its own lane with its own status.
-2. Samples with identical angle arrays share one precomputed geometry of the model.
-   Samples are ordered by geometry and cut into chunks of at most ``chunk_size``; a chunk
-   whose samples all share one geometry passes that scene once (``vmap`` with
-   ``in_axes=None``), any other chunk passes one scene per sample.
+2. Samples with identical angle arrays share one precomputed geometry of the model (a
+   chunk of many distinct geometries, per-pixel angles, computes them in one vmapped
+   call: `_scenes`). Samples are ordered by geometry and cut into chunks of at most
+   ``chunk_size``; a chunk whose samples all share one geometry passes that scene once
+   (``vmap`` with ``in_axes=None``), any other chunk passes one scene per sample.
 3. Ragged data are padded, not looped over: point counts are padded to the next multiple of
    `brdfjax.fitting.objective.POINT_BUCKET` with zero-weight copies of the sample's first point
    (as a single fit pads them), then to the chunk's largest sample, and a chunk's
@@ -116,6 +117,9 @@ LANES = ("auto", "map", "vmap")
 # 120-716 points take 0.1-0.2 s on one CPU device, about what loading one compiled shape for
 # a second device from the caches takes, while compiling it takes 10-30 s.
 SAMPLES_PER_DEVICE = 8
+# Distinct geometries in a chunk from which they are computed in one vmapped call
+# (`_scenes`): per-pixel angles, not a cross-validation's folds (at most 24) or a few files.
+VECTOR_GEOMETRIES = 64
 
 
 def fit_batch(samples: Sequence[Measurements], *, model: str | Model | None = None,
@@ -247,18 +251,19 @@ def _chunk_fits(samples, model, seeds, bounds, config, devices, chunk_size, sett
     for begin in range(0, len(order), chunk_size):
         # Problems are prepared chunk by chunk, so host and device memory stay bounded.
         # Host arrays throughout: the chunk goes to the devices in one transfer.
-        problems, scenes, failed = {}, {}, {}
+        checked, geometries, failed = {}, {}, {}
         for index in order[begin:begin + chunk_size]:
             data = samples[index]
             try:
-                validate(data, path=data.name, angles_checked=keys[index] in scenes)
+                validate(data, path=data.name, angles_checked=keys[index] in geometries)
                 points = bucket(len(data))
-                if keys[index] not in scenes:  # padded once, shared by its samples
-                    scenes[keys[index]] = padded_scene(prepare(data, model), points)
-                problems[index] = Problem(scenes[keys[index]],
-                                          *normalised_targets(data, points), model)
+                geometries.setdefault(keys[index], (data, points))  # prepared once, shared
+                checked[index] = normalised_targets(data, points)
             except (DataError, ValueError) as error:
                 failed[index] = str(error)
+        scenes = _scenes(geometries, model)
+        problems = {index: Problem(scenes[keys[index]], *arrays, model)
+                    for index, arrays in checked.items()}
         if not problems:
             yield _ChunkFit([], failed)
             continue
@@ -272,6 +277,41 @@ def _chunk_fits(samples, model, seeds, bounds, config, devices, chunk_size, sett
         params, fitted, units = _fitted(best, padded, bounds)
         yield _ChunkFit(indices, failed, searched, polished, params, status, evaluations,
                         fitted, units, padded, time.perf_counter() - tic)
+
+
+def _scenes(geometries: dict, model: Model) -> dict:
+    """The padded scene of each distinct geometry of a chunk, by key: ``geometries`` maps a
+    key to a sample with that geometry and its padded point count.
+
+    From `VECTOR_GEOMETRIES` distinct geometries on (per-pixel angles), those of one point
+    count are computed in one vmapped call, in groups padded to a power of two with copies:
+    a call per geometry costs about 0.3 ms of dispatch, more than the fit of a small linear
+    sample. Fewer (a cross-validation's folds, a few files) keep a call each, with no
+    compiled shape of their own.
+    """
+    if len(geometries) < VECTOR_GEOMETRIES:
+        return {key: padded_scene(prepare(data, model), points)
+                for key, (data, points) in geometries.items()}
+    groups: dict[tuple, list] = {}
+    for key, (data, points) in geometries.items():
+        groups.setdefault((points, data.in_plane), []).append(key)
+    scenes = {}
+    for (points, in_plane), keys in groups.items():
+        rows = [geometries[key][0] for key in keys]
+        angles = [np.stack([pad(np.asarray(getattr(data, name), float), points)
+                            for data in rows])[_filled(len(rows), _power_of_two(len(rows)))]
+                  for name in ("theta_i", "theta_r", "phi_r")]
+        stacked = jax.tree.map(np.asarray, _geometries(model, *angles, in_plane=in_plane))
+        scenes.update({key: jax.tree.map(lambda x, row=row: x[row], stacked)
+                       for row, key in enumerate(keys)})
+    return scenes
+
+
+@stage(static_argnames=("in_plane",))
+def _geometries(model: Model, theta_i, theta_r, phi_r, *, in_plane: bool):
+    """The model's geometry of each row of angle arrays (G, N) (`brdfjax.fitting.objective.prepare`
+    of each)."""
+    return jax.vmap(lambda *angles: model.geometry(*angles, in_plane))(theta_i, theta_r, phi_r)
 
 
 def _table(chunks, count: int, model: Model, max_steps: int) -> BatchTable:
