@@ -342,7 +342,8 @@ def bench_rossli(count: int, baseline: Path | None, quick: bool) -> None:
             "identical (weights, E, status).\n" if same[g] else
             "statuses equal; largest relative difference "
             + ", ".join(f"{n} {v:.1e}" for n, v in apart[g].items())
-            + " (the chunks differ in size, and XLA's vectorised solve with them).\n")
+            + " (rounding: E summed in another order, or solves vectorised over chunks of "
+            "other sizes).\n")
             for g in same) if baseline else "")
         + f"- Target of 2 s for the warm command: **{'met' if best <= 2 else 'not met'}** "
         f"(best {best:.2f} s, shared geometry). A process that only imports JAX and h5py "
