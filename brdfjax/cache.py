@@ -110,11 +110,14 @@ def stage(function=None, *, static_argnames: tuple[str, ...] = ()):
 
     @functools.wraps(function)
     def call(*args, **kwargs):
-        leaves = jax.tree.leaves((args, kwargs))
-        if _directory is None or any(isinstance(x, jax.core.Tracer) for x in leaves):
-            return jitted(*args, **kwargs)
+        # Defaults filled in: jit keys its compilations on how arguments are spelled, and
+        # two calls of one shape (one passing a default, one leaving it out) would compile
+        # twice (the fit's polish and the Laplace approximation's).
         bound = signature.bind(*args, **kwargs)
         bound.apply_defaults()
+        leaves = jax.tree.leaves(bound.arguments)
+        if _directory is None or any(isinstance(x, jax.core.Tracer) for x in leaves):
+            return jitted(*bound.args, **bound.kwargs)
         static = {name: bound.arguments.pop(name) for name in static_argnames}
         return _exported(function, jitted, static, bound.args, bound.kwargs)
 

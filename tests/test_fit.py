@@ -20,7 +20,7 @@ from brdfjax.fitting.bounds import (
 from brdfjax.fitting.evolve import evolve
 from brdfjax.fitting.fit import fit
 from brdfjax.fitting.objective import _geometry, problem, projected, solve_linear
-from brdfjax.fitting.polish import polish, polish_population
+from brdfjax.fitting.polish import polish, polish_population, population_starts
 from brdfjax.models.five import FRESNEL_FREE_A
 from brdfjax.models.paper import FIVE, PAPER_SAMPLES, evaluate
 
@@ -107,10 +107,10 @@ def test_parameter_at_a_bound_is_reported(clean_white_paint):
 
 def test_second_fit_of_same_shaped_data_does_not_recompile(clean_white_paint):
     fit(clean_white_paint, seed=1)
-    compiled = [f._cache_size() for f in (evolve, polish_population, polish, _geometry)]
+    compiled = [f._cache_size() for f in (evolve, population_starts, polish, _geometry)]
     other = paper_sample("white_paint", noise=0.01, seed=5)
     fit(other, seed=2, bounds=make_bounds({"b": (-90.0, 20.0)}))  # new data, new bounds
-    assert [f._cache_size() for f in (evolve, polish_population, polish, _geometry)] == compiled
+    assert [f._cache_size() for f in (evolve, population_starts, polish, _geometry)] == compiled
 
 
 def test_repeated_starts_are_skipped_and_change_nothing(clean_white_paint):

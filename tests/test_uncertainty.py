@@ -187,12 +187,28 @@ def test_laplace_repeats_exactly_without_recompiling(white_paint, white_fit, whi
     is belongs to benchmarks/bench_uncertainty.py, not to a unit test)."""
     from brdfjax.uncertainty import laplace
 
-    stages = (laplace._weighted_problem, laplace._keep_finite, laplace._curvature)
+    stages = (laplace._weighted_start, laplace._keep_finite, laplace._curvature)
     compiled = [f._cache_size() for f in stages]
     again = laplace_approximation(white_paint, white_fit)
     assert [f._cache_size() for f in stages] == compiled
     np.testing.assert_array_equal(again.std, white_laplace.std)
     np.testing.assert_array_equal(again.samples, white_laplace.samples)
+
+
+def test_laplace_polishes_with_the_hybrid_fits_compiled_lm():
+    """After a hybrid fit, the polish to the mode adds no compiled LM: it polishes as many
+    starts as the fit (one start and its skipped repeats) on points padded alike. A
+    first ``brdfjax fit`` so compiles one LM, not two (BENCHMARKS.md, section startup)."""
+    from brdfjax.fitting.polish import polish
+
+    data = paper_sample("khaki_paint", seed=3)
+    data = data.select(np.isin(np.round(np.degrees(data.theta_i)), [10, 45])
+                       & (np.round(np.degrees(data.theta_r)) % 5 == 0))
+    result = fit(data, population_size=32, max_generations=3)  # the default 16 starts
+    compiled = polish._cache_size()
+    laplace = laplace_approximation(data, result)
+    assert polish._cache_size() == compiled
+    assert np.all(np.isfinite(laplace.std))
 
 
 # Runs with `pytest -m slow tests/test_uncertainty.py` (pyproject's addopts leave it out of

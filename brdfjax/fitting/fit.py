@@ -33,7 +33,7 @@ from brdfjax.fitting.objective import (
     targets,
     with_loss,
 )
-from brdfjax.fitting.polish import PolishResult, polish, polish_population
+from brdfjax.fitting.polish import STARTS, PolishResult, polish, polish_population
 from brdfjax.models import Model, get
 from brdfjax.models.paper import FIVE
 
@@ -145,7 +145,7 @@ def _degrees(values) -> str:
 
 def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None = None,
         seed: int = 0, validate_incidences_deg=None, bounds: Bounds | None = None, start=None,
-        starts: int = 16, population_size: int = 128, max_generations: int = 40,
+        starts: int = STARTS, population_size: int = 128, max_generations: int = 40,
         max_steps: int = 1000, config: EvolveConfig | None = None,
         constants=None, loss: str = "eq6") -> FitResult:
     """Fit a model (the five-parameter model by default) by minimising E of Eq. (6).

@@ -48,6 +48,8 @@ from brdfjax.fitting.objective import Problem, error, residuals
 # Relative and absolute step tolerances: float64 meets 1e-10 (noise-free data reach
 # E ~ 1e-20); float32 cannot meet tighter than about 1e-6 (at 1e-8 LM runs to its cap).
 TOLERANCE = {jnp.dtype("float64"): 1e-10, jnp.dtype("float32"): 1e-6}
+# Distinct GA members the hybrid fit polishes by default (`polish_population`).
+STARTS = 16
 
 
 class PolishResult(NamedTuple):
@@ -154,9 +156,7 @@ def polish(starts, prob: Problem, bounds: Bounds, *, max_steps: int = 1000,
                           evaluations=final.evaluations + screened.evaluations)
 
 
-@stage(static_argnames=("starts", "islands", "max_steps", "screen_steps", "keep",
-                        "side_by_side"))
-def polish_population(population, prob: Problem, bounds: Bounds, *, starts: int = 16,
+def polish_population(population, prob: Problem, bounds: Bounds, *, starts: int = STARTS,
                       islands: int = 8, separation: float = 0.1, max_steps: int = 1000,
                       screen_steps: int = 40, keep: int = 3,
                       side_by_side: bool = False) -> PolishResult:
@@ -166,18 +166,33 @@ def polish_population(population, prob: Problem, bounds: Bounds, *, starts: int 
     gives ``starts // islands`` members that lie ``separation`` apart, so every basin the
     islands found gets its own starts. The model may add starts of its own made from the
     best member (`brdfjax.models.Model.extra_starts`: the five-parameter model's
-    Fresnel-free start).
+    Fresnel-free start): `start_count` in all. The starts are chosen and polished in two
+    compiled calls, so that other polishes of as many starts (the Laplace approximation's
+    polish to the mode, `brdfjax.uncertainty.laplace.find_mode`) run the same compiled LM.
     """
-    if starts % islands:
-        raise ValueError(f"starts {starts} is not a multiple of islands {islands}")
-    dimensions = prob.model.size
-    blocks = population.reshape(islands, -1, dimensions)
-    chosen = jax.vmap(lambda z: z[distinct_members(z, starts // islands, separation)])(blocks)
-    chosen = jnp.concatenate([chosen.reshape(-1, dimensions),
-                              prob.model.extra_starts(population[:1], bounds)])
-    u0 = to_free(from_unit(chosen, bounds), bounds)
+    u0 = population_starts(population, prob.model, bounds, starts=starts, islands=islands,
+                           separation=separation)
     return polish(u0, prob, bounds, max_steps=max_steps, screen_steps=screen_steps, keep=keep,
                   side_by_side=side_by_side)
+
+
+@stage(static_argnames=("starts", "islands"))
+def population_starts(population, model, bounds: Bounds, *, starts: int = STARTS,
+                      islands: int = 8, separation: float = 0.1) -> jax.Array:
+    """The unconstrained LM starts (`start_count`, P) that `polish_population` polishes."""
+    if starts % islands:
+        raise ValueError(f"starts {starts} is not a multiple of islands {islands}")
+    blocks = population.reshape(islands, -1, model.size)
+    chosen = jax.vmap(lambda z: z[distinct_members(z, starts // islands, separation)])(blocks)
+    chosen = jnp.concatenate([chosen.reshape(-1, model.size),
+                              model.extra_starts(population[:1], bounds)])
+    return to_free(from_unit(chosen, bounds), bounds)
+
+
+def start_count(model, bounds: Bounds, starts: int = STARTS) -> int:
+    """The LM starts of `polish_population`: ``starts`` members and the model's own."""
+    unit = jax.ShapeDtypeStruct((1, model.size), jnp.float64)
+    return starts + jax.eval_shape(model.extra_starts, unit, bounds).shape[0]
 
 
 def resume(free, prob: Problem, bounds: Bounds, max_steps: int) -> PolishResult:

@@ -42,8 +42,9 @@ import numpy as np
 from brdfjax.cache import stage
 from brdfjax.data.measurements import Measurements
 from brdfjax.fitting.bounds import Bounds, from_unit, to_free, to_unit
-from brdfjax.fitting.objective import Problem
-from brdfjax.fitting.polish import polish
+from brdfjax.fitting.fit import placed
+from brdfjax.fitting.objective import Problem, bucket, pad, padded_scene
+from brdfjax.fitting.polish import polish, start_count
 from brdfjax.models import Model
 from brdfjax.models.paper import evaluate_projected
 from brdfjax.uncertainty.likelihood import (
@@ -99,7 +100,7 @@ def laplace_approximation(data: Measurements, fit, *, draws: int = 2000, seed: i
             to the bounds, where the prior is zero.
         seed: seeds the draws.
         max_steps: Levenberg-Marquardt step cap when polishing to the mode (the fit's
-            default, so that `brdfjax.fit` with ``lm`` and this share one compiled LM).
+            default, so that the hybrid `brdfjax.fit` and this share one compiled LM).
         condition_limit: largest acceptable condition number (see `CONDITION_LIMIT`).
         bounds, model, validate_incidences_deg: as for `brdfjax.fitting.fit.fit` when ``fit`` is
             bare parameters.
@@ -174,14 +175,25 @@ def find_mode(post: Posterior, start, max_steps: int = 1000) -> np.ndarray:
     Levenberg-Marquardt on ``(m - y) / sqrt(v)``; for the noise model, alternated with the
     maximum-likelihood scales (`estimate_noise`). A polish that does not give a finite
     chi-square keeps the previous parameters.
+
+    The polish runs the hybrid fit's compiled LM (`brdfjax.fitting.polish.polish` of as many
+    starts as `brdfjax.fitting.polish.polish_population` polishes, on points padded as the
+    fit pads them): the start is repeated, and the repeats are skipped; the padding points
+    weigh nothing. A first ``brdfjax fit`` so compiles one LM, not two.
     """
     unit = to_unit(np.asarray(start, dtype=float), post.bounds)
     noise = np.zeros(0)
+    points = bucket(post.target.shape[0])
+    scene = padded_scene(post.scene, points)
+    target = jnp.asarray(pad(post.target, points, 0.0))  # as `problem` makes the fit's
+    copies = start_count(post.model, post.bounds)
     for _ in range(1 if post.sigma is not None else NOISE_ROUNDS):
         if post.sigma is None:
             noise = estimate_noise(unit, post)
-        free, prob = _weighted_problem(unit, noise, post)
-        polished = polish(free, prob, post.bounds, max_steps=max_steps)
+        free, weight = _weighted_start(unit, noise, post)
+        prob = Problem(scene, target, jnp.asarray(pad(weight, points, 0.0)), post.model)
+        polished = polish(placed(np.repeat(np.asarray(free), copies, axis=0)), prob,
+                          post.bounds, max_steps=max_steps)
         unit = _keep_finite(polished, unit, post.bounds)
     if post.sigma is None:
         noise = estimate_noise(unit, post)
@@ -189,13 +201,12 @@ def find_mode(post: Posterior, start, max_steps: int = 1000) -> np.ndarray:
 
 
 @stage
-def _weighted_problem(unit, noise, post: Posterior) -> tuple[jax.Array, Problem]:
-    """LM start (1, P) and the `Problem` whose residuals are ``(m - y) / sqrt(v)``."""
+def _weighted_start(unit, noise, post: Posterior) -> tuple[jax.Array, jax.Array]:
+    """LM start (1, P) and the weights (N,) that make the residuals ``(m - y) / sqrt(v)``."""
     params = from_unit(unit, post.bounds)
     model = evaluate_projected(params, post.scene, post.model)
     variance = model_variance(jnp.concatenate([unit, noise]), model, post)
-    return (to_free(params, post.bounds)[None],
-            Problem(post.scene, post.target, 1.0 / variance, post.model))
+    return to_free(params, post.bounds)[None], 1.0 / variance
 
 
 @stage
