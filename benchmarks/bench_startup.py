@@ -3,6 +3,7 @@
     python benchmarks/bench_startup.py                     # section startup of BENCHMARKS.md
     python benchmarks/bench_startup.py --before ../old     # also an older tree, same runs
     python benchmarks/bench_startup.py --repeats 1 --quick # one run each, nothing written
+    python benchmarks/bench_startup.py --only fit          # section startup-fit
 
 Targets (issue 25, a quiet 2-core machine, median of 3): the first ``brdfjax fit`` of the
 716-point white-paint set (four incidences) at most 8 s, the first ``brdfjax models`` of a
@@ -63,9 +64,12 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--before", type=Path, help="an older tree to measure the same way")
     parser.add_argument("--quick", action="store_true", help="print, write nothing")
+    parser.add_argument("--only", nargs="+", choices=list(TARGETS),
+                        help="these commands only, written to section startup-NAME")
     args = parser.parse_args()
     folder = Path(tempfile.mkdtemp(prefix="brdfjax-startup-"))
-    runs = commands(folder)
+    runs = {name: command for name, command in commands(folder).items()
+            if not args.only or name in args.only}
     trees = {"now": REPO, **({"before": args.before.resolve()} if args.before else {})}
     rows = []
     for name, command in runs.items():
@@ -78,11 +82,19 @@ def main() -> None:
     text = ("## Start-up: a new user's first commands (empty cache)\n\n"
             f"Median of {args.repeats} runs, each from its own empty compilation cache.\n\n"
             "| command | tree | median (s) | range (s) | load after (max) | target (s) |\n"
-            "|---|---|---|---|---|---|\n" + "\n".join(rows) + "\n")
+            "|---|---|---|---|---|---|\n" + "\n".join(rows) + "\n"
+            + (f"\n*before*: `{_commit(args.before)}`; *now*: `{_commit(REPO)}`.\n"
+               if args.before else ""))
     if args.quick:
         print(text)
     else:
-        write_section("startup", text)
+        write_section("-".join(["startup", *(args.only or [])]).replace(" ", "-"), text)
+
+
+def _commit(tree: Path) -> str:
+    done = subprocess.run(["git", "-C", str(tree), "rev-parse", "--short", "HEAD"],
+                          capture_output=True, text=True, check=False)
+    return done.stdout.strip() or "?"
 
 
 if __name__ == "__main__":
