@@ -55,7 +55,10 @@ def first_run(command, tree: Path, folder: Path) -> tuple[float, float]:
     Path(f"{folder / 'auto.csv'}.options.json").unlink(missing_ok=True)
     env = {**os.environ, "BRDFJAX_CACHE": str(cache), "PYTHONPATH": str(tree)}
     tic = time.perf_counter()
-    subprocess.run(command, env=env, capture_output=True, check=True)
+    # Run outside the checkout: ``python -m`` puts the working directory first on the path,
+    # where a brdfjax there would shadow the tree on PYTHONPATH (every --before measured
+    # this checkout when run from it).
+    subprocess.run(command, env=env, capture_output=True, check=True, cwd=folder)
     return time.perf_counter() - tic, os.getloadavg()[0]
 
 
