@@ -82,7 +82,9 @@ def main() -> None:
             rows.append(f"| `brdfjax {name}` | {label} | {np.median(walls):.1f} | "
                         f"{min(walls):.1f}-{max(walls):.1f} | "
                         f"{max(load for _, load in measured):.1f} | {TARGETS[name]:.0f} |")
-    text = ("## Start-up: a new user's first commands (empty cache)\n\n"
+    named = ", ".join(f"`brdfjax {name}`" for name in runs)
+    text = (f"## Start-up: a new user's first {named if args.only else 'commands'} "
+            "(empty cache)\n\n"
             f"Median of {args.repeats} runs, each from its own empty compilation cache.\n\n"
             "| command | tree | median (s) | range (s) | load after (max) | target (s) |\n"
             "|---|---|---|---|---|---|\n" + "\n".join(rows) + "\n"
