@@ -101,7 +101,7 @@ def stage(function=None, *, static_argnames: tuple[str, ...] = ()):
     """Decorator: ``jax.jit`` whose tracing is kept on disk once `enable` was called.
 
     Called with tracers (inside another jit or vmap) or with the caches off, a stage is
-    exactly ``jax.jit(function, static_argnames=...)``.
+    ``jax.jit(function, static_argnames=...)`` called with its defaults filled in.
     """
     if function is None:
         return functools.partial(stage, static_argnames=static_argnames)

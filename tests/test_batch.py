@@ -99,6 +99,19 @@ def test_the_table_holds_what_the_results_report(mixed_batch):
     assert list(table.message) == [r.message for r in results]
 
 
+def test_the_five_parameter_model_on_geometries_computed_at_once(mixed_batch, monkeypatch):
+    """The mixed batch (three geometries, real and synthetic) through the vmapped geometry
+    path (its threshold lowered): each sample's status and E as computed one geometry at a
+    time (1e-9)."""
+    from brdfjax.fitting import batch
+
+    samples, results = mixed_batch
+    monkeypatch.setattr(batch, "VECTOR_GEOMETRIES", 2)
+    table = fit_batch(samples, table=True, **SMALL)
+    assert list(table.status) == [r.status for r in results]
+    np.testing.assert_allclose(table.error, [r.error for r in results], rtol=1e-9)
+
+
 def test_vmap_lanes_end_where_the_per_sample_path_ends(mixed_batch, monkeypatch):
     """The accelerator's lanes, run here on the CPU: every sample and each of its LM starts
     side by side, starts still running after `LANE_STEPS` resumed in a second batch. With
@@ -174,7 +187,15 @@ def test_geometries_computed_at_once_give_the_fits_of_one_at_a_time(monkeypatch)
     assert [data.in_plane for data in samples] == [False] * 4 + [True] * 2
     one_by_one = fit_batch(samples, model="ross-li", table=True)
     monkeypatch.setattr(batch, "VECTOR_GEOMETRIES", 2)
+    original, calls = batch._geometries, []
+
+    def counted(model, *angles, **options):
+        calls.append(angles[0].shape)
+        return original(model, *angles, **options)
+
+    monkeypatch.setattr(batch, "_geometries", counted)
     at_once = fit_batch(samples, model="ross-li", table=True)
+    assert calls == [(4, 64), (2, 64)]  # one call per group, padded to a power of two
     np.testing.assert_allclose(at_once.params, one_by_one.params, rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(at_once.error, one_by_one.error, rtol=1e-12)
     assert list(at_once.status) == ["converged"] * 6

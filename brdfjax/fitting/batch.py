@@ -21,7 +21,8 @@ distinct good members), but as one compiled call per chunk of samples:
    there). Compilations are so
    bounded to one per (sample bucket, point bucket, shared geometry or not) and device
    (XLA compiles for each device it runs on, all devices at once; a chunk uses one device
-   per `SAMPLES_PER_DEVICE` samples at most, so a small chunk compiles once).
+   per `SAMPLES_PER_DEVICE` samples at most, so a small chunk compiles once, and a linear
+   model's chunk one device).
 4. Every sample is keyed by ``jax.random.key(seed)`` as `brdfjax.fitting.fit.fit` keys it, so a
    batched fit follows the same search as the single fit of the same sample and ends at the
    same E (to 1e-9 relative, tested): both pad points to the same bucket, so they run the
@@ -261,6 +262,7 @@ def _chunk_fits(samples, model, seeds, bounds, config, devices, chunk_size, sett
                 checked[index] = normalised_targets(data, points)
             except (DataError, ValueError) as error:
                 failed[index] = str(error)
+        # After the checks: `validate` has passed every angle the geometry is made from.
         scenes = _scenes(geometries, model)
         problems = {index: Problem(scenes[keys[index]], *arrays, model)
                     for index, arrays in checked.items()}

@@ -3,7 +3,8 @@
 Dask (``pip install 'brdfjax[batch]'``) does the scheduling; brdfjax only cuts the
 catalogue into chunks and hands each to `fit_chunk` on a worker. A worker runs
 `brdfjax.fitting.batch.fit_batch` on its chunk (compiling once per chunk shape, then reusing the
-compiled fit for every later chunk) and sends back plain dictionaries, so a worker needs
+compiled fit for every later chunk) and sends back plain data (dictionaries, or a cube
+block's NumPy arrays: `fit_cube_chunk`), so a worker needs
 brdfjax installed but not the data files: the client reads them and ships the arrays.
 `fit_chunk` is also what the local path of ``brdfjax batch`` calls, so a cluster run and a
 local run compute the same thing.
@@ -105,7 +106,7 @@ def require_dask() -> None:
 
 
 def fit_on_cluster(chunks: Iterable[list], scheduler: str, options: dict,
-                   task=fit_chunk) -> Iterator[tuple[int, list[dict] | BaseException]]:
+                   task=fit_chunk) -> Iterator[tuple[int, list[dict] | dict | BaseException]]:
     """Send every chunk to a Dask cluster; yield each chunk's results as soon as it is done.
 
     Args:

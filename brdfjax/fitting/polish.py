@@ -190,9 +190,15 @@ def population_starts(population, model, bounds: Bounds, *, starts: int = STARTS
 
 
 def start_count(model, bounds: Bounds, starts: int = STARTS) -> int:
-    """The LM starts of `polish_population`: ``starts`` members and the model's own."""
-    unit = jax.ShapeDtypeStruct((1, model.size), jnp.float64)
-    return starts + jax.eval_shape(model.extra_starts, unit, bounds).shape[0]
+    """The LM starts of `polish_population`: ``starts`` members and the model's own (a
+    shape, traced once per model)."""
+    if model not in _own_starts:
+        unit = jax.ShapeDtypeStruct((1, model.size), jnp.float64)
+        _own_starts[model] = jax.eval_shape(model.extra_starts, unit, bounds).shape[0]
+    return starts + _own_starts[model]
+
+
+_own_starts: dict = {}  # model: the count of its `brdfjax.models.Model.extra_starts`
 
 
 def resume(free, prob: Problem, bounds: Bounds, max_steps: int) -> PolishResult:

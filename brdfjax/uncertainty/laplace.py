@@ -179,7 +179,9 @@ def find_mode(post: Posterior, start, max_steps: int = 1000) -> np.ndarray:
     The polish runs the hybrid fit's compiled LM (`brdfjax.fitting.polish.polish` of as many
     starts as `brdfjax.fitting.polish.polish_population` polishes, on points padded as the
     fit pads them): the start is repeated, and the repeats are skipped; the padding points
-    weigh nothing. A first ``brdfjax fit`` so compiles one LM, not two.
+    weigh nothing. A first ``brdfjax fit`` so compiles one LM, not two, where the fit ran
+    with the default ``starts``, on at most `brdfjax.fitting.fit.DENSE_POINTS` points and in
+    one process (otherwise this compiles an LM of its own; the result is the same).
     """
     unit = to_unit(np.asarray(start, dtype=float), post.bounds)
     noise = np.zeros(0)

@@ -224,6 +224,10 @@ class CubeResults:
     def record(self, indices, numbers: dict) -> None:
         """Journal one block: its sample indices and their numbers
         (`brdfjax.fitting.cluster.fit_cube_chunk`)."""
+        if np.shape(numbers["params"]) != (len(indices), len(self.names)):
+            raise ValueError(f"a block of {len(indices)} samples needs parameters of shape "
+                             f"({len(indices)}, {len(self.names)}), not "
+                             f"{np.shape(numbers['params'])}")
         block = {"index": np.asarray(indices, dtype=np.int64),
                  **{name: np.asarray(numbers[name], dtype=float)
                     for name in ("params", "error", "std")},
