@@ -113,6 +113,14 @@ def test_second_fit_of_same_shaped_data_does_not_recompile(clean_white_paint):
     assert [f._cache_size() for f in (evolve, population_starts, polish, _geometry)] == compiled
 
 
+def test_a_population_that_breeds_nothing_is_a_clear_error(clean_white_paint):
+    prob, bounds = problem(clean_white_paint), default_bounds()
+    with pytest.raises(ValueError, match="not a multiple of islands 8"):
+        evolve(0, prob, bounds, population_size=36)
+    with pytest.raises(ValueError, match="nothing would be bred; give at least 40"):
+        evolve(0, prob, bounds, population_size=32)
+
+
 def test_repeated_starts_are_skipped_and_change_nothing(clean_white_paint):
     prob, bounds = problem(clean_white_paint), default_bounds()
     u = to_free(np.array([PAPER_SAMPLES[name] for name in ("white_paint", "cement",

@@ -204,7 +204,7 @@ def test_laplace_polishes_with_the_hybrid_fits_compiled_lm():
     data = paper_sample("khaki_paint", seed=3)
     data = data.select(np.isin(np.round(np.degrees(data.theta_i)), [10, 45])
                        & (np.round(np.degrees(data.theta_r)) % 5 == 0))
-    result = fit(data, population_size=32, max_generations=3)  # 16 starts and its own
+    result = fit(data, population_size=48, max_generations=3)  # 16 starts and its own
     compiled = polish._cache_size()
     laplace = laplace_approximation(data, result)
     assert polish._cache_size() == compiled

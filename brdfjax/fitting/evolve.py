@@ -117,6 +117,11 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
     if population_size % islands:
         raise ValueError(f"population_size {population_size} is not a multiple of "
                          f"islands {islands}")
+    if population_size // islands <= elite_count:
+        raise ValueError(f"population_size {population_size} leaves {population_size // islands}"
+                         f" members to each of {islands} islands, all kept as elite "
+                         f"(elite_count {elite_count}): nothing would be bred; give at least "
+                         f"{islands * (elite_count + 1)}")
     config = EvolveConfig() if config is None else config
     if jnp.ndim(key) == 0 and jnp.issubdtype(jnp.result_type(key), jnp.integer):
         key = jax.random.key(key)
