@@ -180,6 +180,23 @@ def test_fit_predict_writes_the_corrected_prediction_beside_the_model(tmp_path, 
     assert not np.allclose(rows["gp"][:, 3], rows["gp"][:, 4], rtol=1e-4)
 
 
+def test_the_default_model_points_to_one_that_predicts_much_better(tmp_path, ggx_data,
+                                                                     capsys):
+    """``--predict`` with the paper's model on data it cannot follow (GGX's): the console
+    says that GGX predicts the held-out incidences much better, by how much, and the
+    command that uses it."""
+    from brdfjax.data.formats import csv
+
+    source = tmp_path / "ggx.csv"
+    csv.write(ggx_data, source)
+    out = tmp_path / "five.csv"
+    assert main(["fit", str(source), "--uncertainty", "none", "--predict", str(source),
+                 "--predict-out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "note: ggx predicts the held-out incidences" in printed, printed
+    assert f"brdfjax fit {source} --model ggx --predict {source} --predict-out {out}" in printed
+
+
 def test_scattered_incidences_are_binned():
     data = load(DATA / "real" / "nist-germer-ptfe" / "PTFE.data.random.csv", wavelength_nm=532)
     groups = incidence_groups(data)

@@ -337,31 +337,31 @@ def validate_and_predict(result, data, args, geometry=None):
     return calibration, prediction
 
 
-def calibrated(result, args, model=None):
-    """The conformal calibration of ``result`` (or of ``model`` fitted to the same data),
-    and the cross-validation it came from."""
+def calibrated(result, args):
+    """The conformal calibration of ``result``, and the cross-validation it came from."""
     from brdfjax.prediction.cross_validation import cross_validate
     from brdfjax.prediction.intervals import calibrate
 
-    full = result
-    if model is not None:
-        from brdfjax.fitting.fit import fit
-
-        full = fit(result.training, model=model, seed=args.seed, loss=result.loss)
-    validation = cross_validate(full.training, full.model, seed=args.seed, bounds=full.bounds)
-    return calibrate(full.training, validation, discrepancy=args.discrepancy,
-                     fitted=full.vector), validation
+    validation = cross_validate(result.training, result.model, seed=args.seed,
+                                bounds=result.bounds)
+    return calibrate(result.training, validation, discrepancy=args.discrepancy,
+                     fitted=result.vector), validation
 
 
 def suggest_model(result, args, validation, calibration) -> None:
     """Say so when `BETTER_MODEL` predicts the held-out incidences much better than the
-    paper's model, with the command that uses it."""
-    other, other_validation = calibrated(result, args, BETTER_MODEL)
+    paper's model, with the command that uses it. Only its held-out error is needed: its
+    cross-validation, corrected by its discrepancy on the interior folds where the
+    prediction has one (`brdfjax.prediction.intervals.corrected_cv_errors`), not a fit to
+    all the data nor intervals."""
+    from brdfjax.prediction.cross_validation import cross_validate
+    from brdfjax.prediction.intervals import corrected_cv_errors
 
-    def held_out(c, v):
-        return c.corrected_cv_error if c.discrepancy is not None else v.cv_error
-
-    ours, theirs = held_out(calibration, validation), held_out(other, other_validation)
+    other = cross_validate(result.training, BETTER_MODEL, seed=args.seed)
+    ours, theirs = validation.cv_error, other.cv_error
+    if calibration.discrepancy is not None:
+        ours = calibration.corrected_cv_error
+        (theirs,) = corrected_cv_errors(result.training, [other])
     if np.isfinite(ours) and theirs * BETTER_MODEL_FACTOR < ours:
         print(f"  note: {BETTER_MODEL} predicts the held-out incidences {ours / theirs:.3g}x "
               f"better than the paper's model (cv_error {100 * theirs:.3g} % against "
