@@ -47,7 +47,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from benchmarks.report import worker_json, write_section
+from benchmarks.report import commit_of, worker_json, write_section
 
 CLI = [sys.executable, "-m", "brdfjax.cli", "batch"]
 
@@ -334,8 +334,8 @@ def bench_rossli(count: int, baseline: Path | None, quick: bool) -> None:
         "the same samples in a warm process (default `chunk_size` 256, one CPU device per "
         "core), returning a `FitResult` per sample or, with `table=True` (what the command "
         "runs), the numbers of every sample as arrays. *before*: the baseline "
-        "checkout" + (f" `{_commit(baseline)}`" if baseline else "") + "; *after*: this "
-        "one" + (f" `{_commit(REPO)}`" if baseline else "") + ".\n\n"
+        "checkout" + (f" `{commit_of(baseline)}`" if baseline else "") + "; *after*: this "
+        "one" + (f" `{commit_of(REPO)}`" if baseline else "") + ".\n\n"
         "| geometry | code | command (s) | fit_batch (s) | fit_batch, table (s) |\n"
         "|---|---|---|---|---|\n" + table + "\n\n"
         + ("".join(f"- {g} geometry, results before and after: " + (
@@ -363,12 +363,6 @@ def bench_rossli(count: int, baseline: Path | None, quick: bool) -> None:
         print(text)
     else:
         write_section("ross-li-batch", text)
-
-
-def _commit(tree: Path) -> str:
-    done = subprocess.run(["git", "-C", str(tree), "rev-parse", "--short", "HEAD"],
-                          capture_output=True, text=True, check=False)
-    return done.stdout.strip() or "?"
 
 
 def rossli_worker(path, tree) -> None:

@@ -40,7 +40,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from benchmarks import report
-from benchmarks.report import load_average, worker_json, write_section
+from benchmarks.report import commit_of, load_average, worker_json, write_section
 
 TRAIN = [10, 30, 45, 60]
 RT300S = REPO / "data" / "real" / "uaz-loft-rt300s"
@@ -429,12 +429,6 @@ def paper_worker(tree: str, repeats: int) -> dict:
     return out
 
 
-def _commit_of(tree: Path) -> str:
-    """The short commit hash a checkout is at."""
-    return subprocess.run(["git", "-C", str(tree), "rev-parse", "--short", "HEAD"],
-                          capture_output=True, text=True, check=True).stdout.strip()
-
-
 def _first_module(*names):
     """The first of the modules ``names`` that a checkout has."""
     import importlib
@@ -505,7 +499,7 @@ def bench_paper(base: Path, rounds: int, batch_samples: int):
         for label, key in rows)
     write_section("models-paper", "## The paper's model before and after the family of "
                   "models\n\n"
-                  f"Before: `{base}` (commit {_commit_of(base)}, the commit before the engine "
+                  f"Before: `{base}` (commit {commit_of(base)}, the commit before the engine "
                   "became generic), imported "
                   "with `PYTHONPATH`; after: this checkout. Each side runs in fresh "
                   f"processes, the sides alternated, {rounds} rounds; the best of the rounds "

@@ -28,7 +28,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from benchmarks.report import write_section
+from benchmarks.report import commit_of, write_section
 
 RAW = REPO / "data" / "real" / "uaz-loft-rt300s" / "raw"
 TARGETS = {"fit": 8.0, "models": 30.0, "batch auto": 60.0}
@@ -88,18 +88,12 @@ def main() -> None:
             f"Median of {args.repeats} runs, each from its own empty compilation cache.\n\n"
             "| command | tree | median (s) | range (s) | load after (max) | target (s) |\n"
             "|---|---|---|---|---|---|\n" + "\n".join(rows) + "\n"
-            + (f"\n*before*: `{_commit(args.before)}`; *now*: `{_commit(REPO)}`.\n"
+            + (f"\n*before*: `{commit_of(args.before)}`; *now*: `{commit_of(REPO)}`.\n"
                if args.before else ""))
     if args.quick:
         print(text)
     else:
         write_section("-".join(["startup", *(args.only or [])]).replace(" ", "-"), text)
-
-
-def _commit(tree: Path) -> str:
-    done = subprocess.run(["git", "-C", str(tree), "rev-parse", "--short", "HEAD"],
-                          capture_output=True, text=True, check=False)
-    return done.stdout.strip() or "?"
 
 
 if __name__ == "__main__":

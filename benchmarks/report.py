@@ -98,3 +98,10 @@ def worker_json(command: list, env: dict | None = None) -> dict:
     if done.returncode:
         raise RuntimeError(f"worker {command[1:]} failed:\n{done.stderr}")
     return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def commit_of(tree) -> str:
+    """The short commit hash a checkout is at ("?" where git cannot say)."""
+    done = subprocess.run(["git", "-C", str(tree), "rev-parse", "--short", "HEAD"],
+                          capture_output=True, text=True, check=False)
+    return done.stdout.strip() or "?"

@@ -44,11 +44,8 @@ def fit_chunk(samples: list, options: dict) -> list[dict]:
         ``"uncertainty_status"``.
     """
     from brdfjax.fitting.batch import fit_batch
-    from brdfjax.fitting.bounds import make_bounds
 
-    options = dict(options)
-    uncertainty = options.pop("uncertainty", None)
-    bounds = make_bounds(options.pop("ranges", {}), model=options.get("model"))
+    uncertainty, bounds, options = _batch_options(options)
     results = fit_batch(samples, bounds=bounds, **options)
     summaries = [result.to_dict() for result in results]
     if uncertainty == "laplace":
@@ -64,14 +61,11 @@ def fit_cube_chunk(samples: list, options: dict) -> dict:
     import numpy as np
 
     from brdfjax.fitting.batch import fit_batch
-    from brdfjax.fitting.bounds import make_bounds
     from brdfjax.models import get
 
     if options.get("uncertainty") is None:
-        options = dict(options)
-        options.pop("uncertainty", None)
-        bounds = make_bounds(options.pop("ranges", {}), model=options.get("model"))
-        table = fit_batch(samples, bounds=bounds, table=True, **options)
+        _, bounds, plain = _batch_options(options)
+        table = fit_batch(samples, bounds=bounds, table=True, **plain)
         return {**table._asdict(), "std": np.full_like(table.params, np.nan)}
     summaries = fit_chunk(samples, options)
     names = get(options.get("model")).names
@@ -81,6 +75,16 @@ def fit_cube_chunk(samples: list, options: dict) -> dict:
             "error": np.array([s["error"] for s in summaries], float),
             "status": np.array([s["status"] for s in summaries]),
             "message": np.array([s["message"] for s in summaries], dtype=object)}
+
+
+def _batch_options(options: dict) -> tuple:
+    """A chunk's ``options`` (`fit_chunk`) as ``(uncertainty, bounds, the keyword arguments
+    of fit_batch)``: the box made from ``ranges``."""
+    from brdfjax.fitting.bounds import make_bounds
+
+    options = dict(options)
+    uncertainty = options.pop("uncertainty", None)
+    return uncertainty, make_bounds(options.pop("ranges", {}), model=options.get("model")), options
 
 
 def _add_laplace(samples, results, summaries, bounds) -> None:
