@@ -173,8 +173,8 @@ def test_linear_fits_of_shared_and_own_geometries_equal_single_fits():
 
 def test_geometries_computed_at_once_give_the_fits_of_one_at_a_time(monkeypatch):
     """From `VECTOR_GEOMETRIES` distinct geometries a chunk computes them in one vmapped
-    call per point count and plane (lowered here so that 6 pixels take that path, in two
-    groups: four with their own angles, two in the plane): the fits of a call per
+    call per plane (lowered here so that 6 pixels take that path, in two groups: four with
+    their own angles, two in the plane): the fits of a call per
     geometry, each pixel's parameters and E to 1e-12."""
     import dataclasses
 

@@ -185,13 +185,45 @@ def test_a_huge_brdf_is_reported_as_an_outlier(value, name):
         load(path, **options_for(name))
 
 
-@given(values=st.lists(st.floats(0, 1e300, allow_subnormal=True), min_size=1, max_size=40))
-def test_the_outlier_median_is_numpys(values):
-    """`validate`'s median (one partial sort, for speed) is ``np.median``, to the bit."""
-    from brdfjax.data.measurements import _median
+def spoiled(kind: int, points: int, seed: int) -> Measurements:
+    """A plausible sample of ``points`` readings, with one of `validate`'s problems (kind 1-5)
+    or none (kind 0)."""
+    rng = np.random.default_rng(seed)
+    brdf = rng.uniform(0.01, 1.0, points)
+    theta_r = rng.uniform(0, 80, points)
+    sigma = 0.02 * brdf if kind == 5 else None
+    spot = rng.integers(points)
+    if kind == 1:
+        brdf[spot] = np.nan
+    elif kind == 2:
+        brdf[spot] = 1e30
+    elif kind == 3:
+        brdf[spot] = -0.5
+    elif kind == 4:
+        theta_r[spot] = 95.0
+    elif kind == 5:
+        sigma[spot] = 0.0
+    return Measurements.from_degrees(rng.uniform(0, 70, points), theta_r,
+                                     rng.choice([0.0, 180.0], points), brdf, sigma=sigma,
+                                     metadata={"sample": f"s{seed}"})
 
-    values = np.array(values)
-    assert _median(values) == float(np.median(values))
+
+@given(st.lists(st.tuples(st.integers(0, 5), st.integers(3, 8), st.integers(0, 2**16)),
+                min_size=1, max_size=12))
+def test_a_batch_is_checked_as_each_sample_alone(specs):
+    """`failures` checks a batch's samples stacked by length: each gets the message
+    `validate` gives it alone, whatever the samples beside it hold."""
+    from brdfjax.data.measurements import failures
+
+    samples = [spoiled(*spec) for spec in specs]
+    expected = {}
+    for position, data in enumerate(samples):
+        try:
+            validate(data, path=data.name)
+        except DataError as error:
+            expected[position] = str(error)
+    assert failures(samples) == expected
+    assert {p for p, (kind, *_) in enumerate(specs) if kind} == set(expected)
 
 
 def real_files():

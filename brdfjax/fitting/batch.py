@@ -4,9 +4,10 @@
 runs with the ``hybrid`` method (genetic search, then screened Levenberg-Marquardt from
 distinct good members), but as one compiled call per chunk of samples:
 
-1. Each sample is checked (`brdfjax.data.measurements.validate`); one that fails becomes a
-   ``failed`` result carrying the reason and never reaches the compiled fit, so it cannot
-   spoil the others. Inside the fit every sample is its own lane with its own status.
+1. Each sample is checked (`brdfjax.data.measurements.failures`: the checks of ``validate``,
+   a chunk's samples of one length together); one that fails becomes a ``failed`` result
+   carrying the reason and never reaches the compiled fit, so it cannot spoil the others.
+   Inside the fit every sample is its own lane with its own status.
 2. Samples with identical angle arrays share one precomputed geometry of the model (a
    chunk of many distinct geometries, per-pixel angles, computes them in one vmapped
    call: `_scenes`). Samples are ordered by geometry and cut into chunks of at most
@@ -77,7 +78,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from brdfjax.cache import stage
-from brdfjax.data.measurements import DataError, Measurements, validate
+from brdfjax.data.measurements import Measurements, failures
 from brdfjax.fitting.bounds import Bounds, default_bounds, to_unit
 from brdfjax.fitting.evolve import EvolveConfig, EvolveResult, evolve
 from brdfjax.fitting.fit import (
@@ -92,7 +93,7 @@ from brdfjax.fitting.fit import (
 from brdfjax.fitting.objective import (
     Problem,
     bucket,
-    normalised_targets,
+    normalised,
     pad,
     padded_scene,
     prepare,
@@ -244,7 +245,11 @@ class _ChunkFit(NamedTuple):
 
 def _chunk_fits(samples, model, seeds, bounds, config, devices, chunk_size, settings,
                 resumed_steps):
-    """Check, prepare and fit the samples a chunk at a time; yield a `_ChunkFit` each."""
+    """Check, prepare and fit the samples a chunk at a time; yield a `_ChunkFit` each.
+
+    A chunk's samples are checked and prepared together, as arrays (`failures`,
+    `_targets`, `_scenes`): per-sample Python cost more than the fit of a small linear
+    sample (a Ross-Li pixel)."""
     # Stable sort by geometry, so that samples sharing one land in the same chunks.
     keys = [_geometry_key(data) for data in samples]
     rank = {key: number for number, key in enumerate(dict.fromkeys(keys))}
@@ -252,27 +257,27 @@ def _chunk_fits(samples, model, seeds, bounds, config, devices, chunk_size, sett
     for begin in range(0, len(order), chunk_size):
         # Problems are prepared chunk by chunk, so host and device memory stay bounded.
         # Host arrays throughout: the chunk goes to the devices in one transfer.
-        checked, geometries, failed = {}, {}, {}
-        for index in order[begin:begin + chunk_size]:
-            data = samples[index]
-            try:
-                validate(data, path=data.name, angles_checked=keys[index] in geometries)
-                points = bucket(len(data))
-                geometries.setdefault(keys[index], (data, points))  # prepared once, shared
-                checked[index] = normalised_targets(data, points)
-            except (DataError, ValueError) as error:
-                failed[index] = str(error)
-        # After the checks: `validate` has passed every angle the geometry is made from.
-        scenes = _scenes(geometries, model)
-        problems = {index: Problem(scenes[keys[index]], *arrays, model)
-                    for index, arrays in checked.items()}
-        if not problems:
+        block = order[begin:begin + chunk_size]
+        failed = {block[position]: message for position, message
+                  in failures([samples[i] for i in block]).items()}
+        checked = [i for i in block if i not in failed]
+        points = max((bucket(len(samples[i])) for i in checked), default=0)
+        targets, weights, usable = _targets([samples[i] for i in checked], points)
+        failed.update({i: f"{samples[i].name}: every weighted measurement is zero; nothing "
+                          "to fit" for i, ok in zip(checked, usable) if not ok})
+        indices = [i for i, ok in zip(checked, usable) if ok]
+        if not indices:
             yield _ChunkFit([], failed)
             continue
+        # After the checks: each geometry is made from angles that passed them.
+        distinct = {keys[i]: i for i in reversed(indices)}  # key: its first sample
+        row_of = {key: row for row, key in enumerate(reversed(distinct))}
+        scene = _scenes([samples[i] for i in reversed(distinct.values())], model, points)
         tic = time.perf_counter()
-        indices = list(problems)
-        (searched, polished), padded = _run_chunk(list(problems.values()), seeds[indices],
-                                                  bounds, config, devices, chunk_size, settings)
+        (searched, polished), padded = _run_chunk(
+            scene, np.array([row_of[keys[i]] for i in indices]), targets[usable],
+            weights[usable], model, seeds[indices], bounds, config, devices, chunk_size,
+            settings)
         if resumed_steps and model.searched_size:
             polished = _resume_slow(polished, padded, bounds, devices[0], resumed_steps)
         best, status, evaluations = polish_summary(polished)
@@ -281,32 +286,54 @@ def _chunk_fits(samples, model, seeds, bounds, config, devices, chunk_size, sett
                         fitted, units, padded, time.perf_counter() - tic)
 
 
-def _scenes(geometries: dict, model: Model) -> dict:
-    """The padded scene of each distinct geometry of a chunk, by key: ``geometries`` maps a
-    key to a sample with that geometry and its padded point count.
+def _targets(samples: list, points: int) -> tuple[np.ndarray, ...]:
+    """`brdfjax.fitting.objective.normalised` of each sample, as (samples, points) arrays
+    and the flags (samples,); samples of one length are stacked and done together."""
+    count = len(samples)
+    targets, weights = np.zeros((count, points)), np.zeros((count, points))
+    usable = np.zeros(count, dtype=bool)
+    groups: dict[tuple, list[int]] = {}
+    for position, data in enumerate(samples):
+        groups.setdefault((len(data), data.weights is None), []).append(position)
+    for (_, unweighted), positions in groups.items():
+        rows = [samples[p] for p in positions]
+        stacked = [np.stack([getattr(data, name) for data in rows])
+                   for name in ("brdf", "theta_r")]
+        given = None if unweighted else np.stack([data.weights for data in rows])
+        targets[positions], weights[positions], usable[positions] = normalised(
+            *stacked, given, points)
+    return targets, weights, usable
 
-    From `VECTOR_GEOMETRIES` distinct geometries on (per-pixel angles), those of one point
-    count are computed in one vmapped call, in groups padded to a power of two with copies:
-    a call per geometry costs about 0.3 ms of dispatch, more than the fit of a small linear
-    sample. Fewer (a cross-validation's folds, a few files) keep a call each, with no
-    compiled shape of their own.
+
+def _scenes(rows: list, model: Model, points: int) -> NamedTuple:
+    """The model's geometry of each of ``rows`` (one sample per distinct geometry of a
+    chunk), padded to ``points`` with copies of its first point and stacked: (G, points).
+
+    From `VECTOR_GEOMETRIES` rows on (per-pixel angles), the rows in the plane of incidence
+    and those out of it are each computed in one vmapped call, padded to a power of two
+    with copies: a call per geometry costs about 0.3 ms of dispatch, more than the fit of a
+    small linear sample. Fewer (a cross-validation's folds, a few files) keep a call each,
+    with no compiled shape of their own.
     """
-    if len(geometries) < VECTOR_GEOMETRIES:
-        return {key: padded_scene(prepare(data, model), points)
-                for key, (data, points) in geometries.items()}
-    groups: dict[tuple, list] = {}
-    for key, (data, points) in geometries.items():
-        groups.setdefault((points, data.in_plane), []).append(key)
-    scenes = {}
-    for (points, in_plane), keys in groups.items():
-        rows = [geometries[key][0] for key in keys]
-        angles = [np.stack([pad(np.asarray(getattr(data, name), float), points)
-                            for data in rows])[_filled(len(rows), _power_of_two(len(rows)))]
+    if len(rows) < VECTOR_GEOMETRIES:
+        return _stack([padded_scene(prepare(data, model), points) for data in rows])
+    in_plane = np.array([data.in_plane for data in rows])
+    parts, positions = [], []
+    for plane in dict.fromkeys(in_plane.tolist()):  # in order of appearance
+        chosen = np.flatnonzero(in_plane == plane)
+        filled = chosen[_filled(chosen.size, _power_of_two(chosen.size))]
+        angles = [np.stack([pad(getattr(rows[k], name), points) for k in filled])
                   for name in ("theta_i", "theta_r", "phi_r")]
-        stacked = jax.tree.map(np.asarray, _geometries(model, *angles, in_plane=in_plane))
-        scenes.update({key: jax.tree.map(lambda x, row=row: x[row], stacked)
-                       for row, key in enumerate(keys)})
-    return scenes
+        computed = _geometries(model, *angles, in_plane=plane)
+        parts.append(jax.tree.map(lambda x, n=chosen.size: np.asarray(x)[:n], computed))
+        positions.append(chosen)
+    back = np.argsort(np.concatenate(positions))
+    return jax.tree.map(lambda *arrays: np.concatenate(arrays)[back], *parts)
+
+
+def _stack(scenes: list) -> NamedTuple:
+    """Scenes of equal shape stacked along a new leading axis."""
+    return jax.tree.map(lambda *arrays: np.stack([np.asarray(a) for a in arrays]), *scenes)
 
 
 @stage(static_argnames=("in_plane",))
@@ -431,34 +458,34 @@ def _status_message(status: str, max_steps: int) -> str:
             "failed": "no start reached a finite E"}.get(str(status), "")
 
 
-def _run_chunk(problems: list[Problem], seeds, bounds, config, devices, chunk_size, settings):
+def _run_chunk(scenes, rows, targets, weights, model: Model, seeds, bounds, config, devices,
+               chunk_size, settings):
     """Pad one chunk, fit a block of it on every device at once.
+
+    Args:
+        scenes: the chunk's distinct geometries, stacked (G, N) (`_scenes`).
+        rows: the geometry of each sample, (B,).
+        targets, weights: each sample's `Problem` arrays, (B, N).
+        model, seeds, bounds, config, devices, chunk_size, settings: as `fit_batch` passes.
 
     Returns:
         The searches and polishes of the samples (host arrays), and the padded chunk fitted:
-        a `Problem` of host arrays with a leading lane axis (the scene's only where each
-        sample has its own).
+        a `Problem` of host arrays with a leading lane axis (the scene's only where the
+        samples have more than one geometry).
     """
-    count = len(problems)
+    count = len(rows)
     # A device per SAMPLES_PER_DEVICE samples at most: XLA compiles a shape once per device,
     # and a small chunk (a cross-validation's folds, a few files) gains less from a second
     # device than that compilation (or its load from the cache) costs. So does any chunk of
     # a linear model: one exact solve per sample, 1024 Ross-Li pixels in milliseconds.
-    linear = problems[0].model.searched_size == 0
+    linear = model.searched_size == 0
     devices = devices[:1 if linear else max(1, count // SAMPLES_PER_DEVICE)]
     lanes = min(chunk_size, _power_of_two(count))
     lanes = -(-max(lanes, count) // len(devices)) * len(devices)
-    points = max(p.target.size for p in problems)  # each already a multiple of POINT_BUCKET
     chosen = _filled(count, lanes)
-    shared = all(p.scene is problems[0].scene for p in problems)
-    targets = np.stack([pad(problems[i].target, points, 0.0) for i in chosen])
-    weights = np.stack([pad(problems[i].weight, points, 0.0) for i in chosen])
-    model = problems[0].model
-    if shared:
-        scene = padded_scene(problems[0].scene, points)
-    else:
-        scene = jax.tree.map(lambda *fields: np.stack(fields),
-                             *(padded_scene(problems[i].scene, points) for i in chosen))
+    targets, weights = targets[chosen], weights[chosen]
+    shared = scenes.cos_theta_r.shape[0] == 1
+    scene = jax.tree.map(lambda x: x[0] if shared else x[rows[chosen]], scenes)
     config = EvolveConfig() if config is None else config
     block = lanes // len(devices)
     real = np.arange(lanes) < count  # the copies padding the chunk are skipped (map lanes)

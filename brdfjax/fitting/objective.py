@@ -180,11 +180,27 @@ def normalised_targets(data: Measurements, points: int) -> tuple[np.ndarray, np.
     Raises:
         ValueError: every weighted measurement is zero (E of Eq. 6 is undefined).
     """
-    target, weight = targets(data)
-    denominator = np.sum(weight * target**2)
-    if not denominator > 0:
+    target, weight, usable = normalised(data.brdf, data.theta_r, data.weights, points)
+    if not usable:
         raise ValueError(f"{data.name}: every weighted measurement is zero; nothing to fit")
-    return pad(target, points, 0.0), pad(weight / denominator, points, 0.0)
+    return target, weight
+
+
+def normalised(brdf, theta_r, weights, points: int) -> tuple[np.ndarray, ...]:
+    """`normalised_targets` of measurement arrays (..., N) with any leading axes (the samples
+    of a batch, stacked), and whether each set is usable: a set whose every weighted
+    measurement is zero has no E of Eq. 6 (its weights are left unnormalised).
+
+    Returns:
+        target and weight (..., points), zero beyond N; usable (...).
+    """
+    target = brdf * np.cos(theta_r)
+    weight = np.ones_like(target) if weights is None else weights
+    denominator = np.sum(weight * target**2, axis=-1, keepdims=True)
+    usable = denominator[..., 0] > 0
+    weight = weight / np.where(denominator > 0, denominator, 1.0)
+    padding = [(0, 0)] * (target.ndim - 1) + [(0, points - target.shape[-1])]
+    return np.pad(target, padding), np.pad(weight, padding), usable
 
 
 def residuals(params, prob: Problem) -> jax.Array:
