@@ -30,7 +30,22 @@ else:
 # in XLA_FLAGS is kept; like 64-bit mode, this acts only before JAX starts its backend.
 _flags = os.environ.get("XLA_FLAGS", "")
 if "xla_backend_optimization_level" not in _flags:
-    os.environ["XLA_FLAGS"] = f"{_flags} --xla_backend_optimization_level=2".strip()
+    _flags = f"{_flags} --xla_backend_optimization_level=2".strip()
+# XLA:CPU's elemental emitters compile brdfjax's loops far faster than its MLIR fusion
+# emitters, and the code runs as fast with the same results: the first `brdfjax models`
+# took 27.5 s instead of 41.2 s, its compilations 29 s of CPU instead of 52 s (BENCHMARKS.md,
+# section startup-emitters). XLA aborts the process on a flag it does not know, and newer
+# XLA retires this one, so it is set only on the jaxlib it was measured with.
+ELEMENTAL_EMITTERS_JAXLIB = ("0.10.",)
+if "xla_cpu_use_fusion_emitters" not in _flags:
+    from importlib import metadata
+
+    try:
+        if metadata.version("jaxlib").startswith(ELEMENTAL_EMITTERS_JAXLIB):
+            _flags = f"{_flags} --xla_cpu_use_fusion_emitters=false"
+    except metadata.PackageNotFoundError:
+        pass
+os.environ["XLA_FLAGS"] = _flags
 
 __version__ = "0.1.0"
 

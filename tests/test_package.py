@@ -25,10 +25,17 @@ def test_import_brdfjax_loads_no_jax():
     assert out.strip() == "False"
 
 
-def test_import_sets_the_llvm_level_unless_given():
+def test_import_sets_the_xla_flags_unless_given():
+    """LLVM at -O2, and on the jaxlib it was measured with, XLA:CPU's elemental emitters;
+    a setting given in XLA_FLAGS is kept. A jit then runs: XLA took the flags (it aborts on
+    one it does not know)."""
     import os
+    from importlib import metadata
 
-    code = "import os, brdfjax; print(os.environ['XLA_FLAGS'])"
+    from brdfjax import ELEMENTAL_EMITTERS_JAXLIB
+
+    code = ("import os, brdfjax, jax; jax.jit(lambda x: x + 1)(1.0).block_until_ready(); "
+            "print(os.environ['XLA_FLAGS'])")
 
     def flags(given):
         env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
@@ -36,7 +43,13 @@ def test_import_sets_the_llvm_level_unless_given():
         return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                               check=True, env=env).stdout.split()
 
-    assert flags(None) == ["--xla_backend_optimization_level=2"]
+    level, emitters = "--xla_backend_optimization_level=2", "--xla_cpu_use_fusion_emitters=false"
+    ours = [level] + ([emitters] if metadata.version("jaxlib").startswith(
+        ELEMENTAL_EMITTERS_JAXLIB) else [])
+    assert flags(None) == ours
     assert flags("--xla_force_host_platform_device_count=2") == [
-        "--xla_force_host_platform_device_count=2", "--xla_backend_optimization_level=2"]
-    assert flags("--xla_backend_optimization_level=3") == ["--xla_backend_optimization_level=3"]
+        "--xla_force_host_platform_device_count=2", *ours]
+    assert flags("--xla_backend_optimization_level=3") == [
+        "--xla_backend_optimization_level=3", *ours[1:]]
+    assert flags("--xla_cpu_use_fusion_emitters=true") == [
+        "--xla_cpu_use_fusion_emitters=true", level]
