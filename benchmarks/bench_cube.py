@@ -47,7 +47,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from benchmarks.report import commit_of, worker_json, write_section
+from benchmarks.report import child_env, commit_of, worker_json, write_section
 
 CLI = [sys.executable, "-m", "brdfjax.cli", "batch"]
 
@@ -120,7 +120,7 @@ def bench_cube(count: int, subset: int, quick: bool) -> None:
     from brdfjax.fitting.fit import fit
 
     folder = Path(tempfile.mkdtemp(prefix="brdfjax-cube-"))
-    env = {**os.environ, "BRDFJAX_CACHE": str(folder / "cache"), "PYTHONPATH": str(REPO)}
+    env = child_env(BRDFJAX_CACHE=str(folder / "cache"), PYTHONPATH=str(REPO))
     from brdfjax.commands.batch import CUBE_CHUNK as chunk  # the default --chunk-size
     make_cube(folder / "warm.h5", 2 * chunk, seed=1)
     first = run(folder / "warm.h5", folder / "warm_results.h5", env)
@@ -173,7 +173,7 @@ def bench_lanes(quick: bool) -> None:
     """The per-sample path's LM steps, and the iterations a vmapped chunk would run."""
     worker = subprocess.run([sys.executable, __file__, "--lanes-worker",
                              str(256 if quick else 1024)], capture_output=True, text=True,
-                            check=False, env={**os.environ, "PYTHONPATH": str(REPO)})
+                            check=False, env=child_env(PYTHONPATH=str(REPO)))
     if worker.returncode:
         raise RuntimeError(worker.stderr)
     r = json.loads(worker.stdout.strip().splitlines()[-1])
@@ -289,8 +289,7 @@ def bench_rossli(count: int, baseline: Path | None, quick: bool) -> None:
         cube = folder / f"{geometry}.h5"
         make_modis_cube(cube, count, own_geometry=geometry == "per-sample")
         for label, tree in trees.items():
-            env = {**os.environ, "BRDFJAX_CACHE": str(folder / "cache"),
-                   "PYTHONPATH": str(tree)}
+            env = child_env(BRDFJAX_CACHE=str(folder / "cache"), PYTHONPATH=str(tree))
             out = folder / f"{geometry}-{label}.h5"
             command = [run(cube, out, env, ("--model", "ross-li"))]  # fills the caches
             for _ in range(2):

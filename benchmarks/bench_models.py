@@ -462,7 +462,7 @@ def bench_paper(base: Path, rounds: int, batch_samples: int):
     results = {side: [] for side in trees}
     for _ in range(rounds):  # alternated, so that other jobs bias neither side
         for side, tree in trees.items():
-            env = {**os.environ, "PYTHONPATH": str(tree)}
+            env = report.child_env(PYTHONPATH=str(tree))
             report_ = worker_json([sys.executable, __file__, "--paper-worker", str(tree)], env)
             assert Path(report_["brdfjax"]).parent == tree.resolve(), report_["brdfjax"]
             report_["cold"] = cold_fit(env, train)

@@ -28,7 +28,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from benchmarks.report import commit_of, write_section
+from benchmarks.report import child_env, commit_of, write_section
 
 RAW = REPO / "data" / "real" / "uaz-loft-rt300s" / "raw"
 TARGETS = {"fit": 8.0, "models": 30.0, "batch auto": 60.0}
@@ -53,7 +53,7 @@ def first_run(command, tree: Path, folder: Path) -> tuple[float, float]:
     cache = Path(tempfile.mkdtemp(dir=folder))
     (folder / "auto.csv").unlink(missing_ok=True)
     Path(f"{folder / 'auto.csv'}.options.json").unlink(missing_ok=True)
-    env = {**os.environ, "BRDFJAX_CACHE": str(cache), "PYTHONPATH": str(tree)}
+    env = child_env(BRDFJAX_CACHE=str(cache), PYTHONPATH=str(tree))
     tic = time.perf_counter()
     # Run outside the checkout: ``python -m`` puts the working directory first on the path,
     # where a brdfjax there would shadow the tree on PYTHONPATH (every --before measured

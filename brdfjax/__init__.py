@@ -33,8 +33,8 @@ if "xla_backend_optimization_level" not in _flags:
     _flags = f"{_flags} --xla_backend_optimization_level=2".strip()
 # XLA:CPU's elemental emitters compile brdfjax's loops far faster than its MLIR fusion
 # emitters, and the code runs as fast with the same results: the first `brdfjax models`
-# took 27.5 s instead of 41.2 s, its compilations 29 s of CPU instead of 52 s (BENCHMARKS.md,
-# section startup-emitters). XLA aborts the process on a flag it does not know, and newer
+# took 28.0 s instead of 39.9 s, its compilations 29 s of CPU instead of 52 s (BENCHMARKS.md,
+# section startup-fit-models-batch-auto). XLA aborts the process on a flag it does not know, and newer
 # XLA retires this one, so it is set only on the jaxlib it was measured with.
 ELEMENTAL_EMITTERS_JAXLIB = ("0.10.",)
 if "xla_cpu_use_fusion_emitters" not in _flags:
