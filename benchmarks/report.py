@@ -25,20 +25,21 @@ with `make bench`.
 """
 
 
-# XLA_FLAGS as the benchmark was started with (report is imported before brdfjax): `import
-# brdfjax` adds its own flags to this process's environment, and a child process running
-# another checkout (``--before``, ``--baseline``) must get that checkout's own, not these.
+# XLA_FLAGS as the benchmark was started with: `import brdfjax` adds its own flags to this
+# process's environment, and a child process running another checkout (``--before``,
+# ``--baseline``) must get that checkout's own, not these. Right only where this module is
+# imported before brdfjax (the scripts that use `child_env` import it first).
 _GIVEN_XLA_FLAGS = os.environ.get("XLA_FLAGS")
 
 
 def child_env(**extra: str) -> dict:
-    """This process's environment plus ``extra``, with XLA_FLAGS as the benchmark was started
-    with: for a child process that imports a brdfjax of its own."""
-    env = {**os.environ, **extra}
+    """This process's environment with XLA_FLAGS as the benchmark was started with, then
+    ``extra``: for a child process that imports a brdfjax of its own."""
+    env = dict(os.environ)
     env.pop("XLA_FLAGS", None)
     if _GIVEN_XLA_FLAGS is not None:
         env["XLA_FLAGS"] = _GIVEN_XLA_FLAGS
-    return env
+    return {**env, **extra}
 
 
 # Only the footer of a run that writes: ``--quick`` runs set this and print instead.

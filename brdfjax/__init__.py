@@ -32,18 +32,20 @@ _flags = os.environ.get("XLA_FLAGS", "")
 if "xla_backend_optimization_level" not in _flags:
     _flags = f"{_flags} --xla_backend_optimization_level=2".strip()
 # XLA:CPU's elemental emitters compile brdfjax's loops far faster than its MLIR fusion
-# emitters, and the code runs as fast with the same results: the first `brdfjax models`
-# took 28.0 s instead of 39.9 s, its compilations 29 s of CPU instead of 52 s (BENCHMARKS.md,
-# section startup-fit-models-batch-auto). XLA aborts the process on a flag it does not know, and newer
-# XLA retires this one, so it is set only on the jaxlib it was measured with.
-ELEMENTAL_EMITTERS_JAXLIB = ("0.10.",)
+# emitters, and the code runs as fast with the same results: the first `brdfjax models` took
+# 28.0 s instead of 39.9 s, its compilations 29 s of CPU instead of 52 s (BENCHMARKS.md,
+# section startup-fit-models-batch-auto). XLA aborts the process on a flag it does not
+# know, and newer XLA retires this one, so it is set only on the jaxlib it was measured
+# with. Reading that version costs `import brdfjax` about 30 ms (importlib.metadata, which
+# JAX imports anyway).
+_ELEMENTAL_EMITTERS_JAXLIB = ("0.10.",)
 if "xla_cpu_use_fusion_emitters" not in _flags:
-    from importlib import metadata
+    from importlib import metadata as _metadata
 
     try:
-        if metadata.version("jaxlib").startswith(ELEMENTAL_EMITTERS_JAXLIB):
+        if _metadata.version("jaxlib").startswith(_ELEMENTAL_EMITTERS_JAXLIB):
             _flags = f"{_flags} --xla_cpu_use_fusion_emitters=false"
-    except metadata.PackageNotFoundError:
+    except _metadata.PackageNotFoundError:
         pass
 os.environ["XLA_FLAGS"] = _flags
 

@@ -186,30 +186,24 @@ def test_a_huge_brdf_is_reported_as_an_outlier(value, name):
 
 
 def spoiled(kind: int, points: int, seed: int) -> Measurements:
-    """A plausible sample of ``points`` readings, with one of `validate`'s problems (kind 1-5)
-    or none (kind 0)."""
+    """A plausible sample of ``points`` readings (weighted for odd seeds), with one of
+    `validate`'s problems (kind 1-6) or none (kind 0); without readings when ``points`` is 0."""
     rng = np.random.default_rng(seed)
     brdf = rng.uniform(0.01, 1.0, points)
     theta_r = rng.uniform(0, 80, points)
     sigma = 0.02 * brdf if kind == 5 else None
-    spot = rng.integers(points)
-    if kind == 1:
-        brdf[spot] = np.nan
-    elif kind == 2:
-        brdf[spot] = 1e30
-    elif kind == 3:
-        brdf[spot] = -0.5
-    elif kind == 4:
-        theta_r[spot] = 95.0
-    elif kind == 5:
-        sigma[spot] = 0.0
+    weights = rng.uniform(0.5, 2.0, points) if seed % 2 or kind == 6 else None
+    spot = rng.integers(max(points, 1))
+    if points and kind:
+        {1: brdf, 2: brdf, 3: brdf, 4: theta_r, 5: sigma, 6: weights}[kind][spot] = {
+            1: np.nan, 2: 1e30, 3: -0.5, 4: 95.0, 5: 0.0, 6: -1.0}[kind]
     return Measurements.from_degrees(rng.uniform(0, 70, points), theta_r,
                                      rng.choice([0.0, 180.0], points), brdf, sigma=sigma,
-                                     metadata={"sample": f"s{seed}"})
+                                     weights=weights, metadata={"sample": f"s{seed}"})
 
 
-@given(st.lists(st.tuples(st.integers(0, 5), st.integers(3, 8), st.integers(0, 2**16)),
-                min_size=1, max_size=12))
+@given(st.lists(st.tuples(st.integers(0, 6), st.sampled_from([0, 3, 4, 5, 8]),
+                          st.integers(0, 2**16)), min_size=1, max_size=12))
 def test_a_batch_is_checked_as_each_sample_alone(specs):
     """`failures` checks a batch's samples stacked by length: each gets the message
     `validate` gives it alone, whatever the samples beside it hold."""
@@ -223,7 +217,7 @@ def test_a_batch_is_checked_as_each_sample_alone(specs):
         except DataError as error:
             expected[position] = str(error)
     assert failures(samples) == expected
-    assert {p for p, (kind, *_) in enumerate(specs) if kind} == set(expected)
+    assert {p for p, (kind, points, _) in enumerate(specs) if kind or not points} == set(expected)
 
 
 def real_files():

@@ -32,7 +32,7 @@ def test_import_sets_the_xla_flags_unless_given():
     import os
     from importlib import metadata
 
-    from brdfjax import ELEMENTAL_EMITTERS_JAXLIB
+    from brdfjax import _ELEMENTAL_EMITTERS_JAXLIB
 
     code = ("import os, brdfjax, jax; jax.jit(lambda x: x + 1)(1.0).block_until_ready(); "
             "print(os.environ['XLA_FLAGS'])")
@@ -45,7 +45,7 @@ def test_import_sets_the_xla_flags_unless_given():
 
     level, emitters = "--xla_backend_optimization_level=2", "--xla_cpu_use_fusion_emitters=false"
     ours = [level] + ([emitters] if metadata.version("jaxlib").startswith(
-        ELEMENTAL_EMITTERS_JAXLIB) else [])
+        _ELEMENTAL_EMITTERS_JAXLIB) else [])
     assert flags(None) == ours
     assert flags("--xla_force_host_platform_device_count=2") == [
         "--xla_force_host_platform_device_count=2", *ours]

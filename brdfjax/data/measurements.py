@@ -33,6 +33,8 @@ NEGATIVE_TOLERANCE = 0.05
 # its diffuse floor reaches 1e4-1e6 on instruments with apertures of 1e-4 to 1e-3 sr
 # (f_r <= 1 / (aperture cos theta_r)). Eight decades leave that margin, and still catch
 # every corrupt value a fit would choke on (1e30, 1e308) and mistyped exponents (e+10).
+# The median is robust: a few corrupt values cannot move it, so they stand out against it
+# however many decades they lie above. Data whose median is 0 have no scale and no outliers.
 OUTLIER_DECADES = 8
 
 
@@ -240,10 +242,9 @@ def validate(data: Measurements, path=None, lines=None,
     Returns:
         ``data`` unchanged.
     """
-    if len(data) == 0:
-        raise DataError("no measurements", path, None, "the file has a header but no data lines")
-    problem = _problems({name: values[None] for name, values in data._arrays().items()
-                         if values is not None}, geometry_only).get(0)
+    problem = NO_POINTS if len(data) == 0 else _problems(
+        {name: values[None] for name, values in data._arrays().items() if values is not None},
+        geometry_only).get(0)
     if problem is not None:
         index, message, hint = problem
         line = None if lines is None or index is None else int(lines[index])
@@ -267,7 +268,7 @@ def failures(samples) -> dict[int, str]:
     for (points, *_), positions in groups.items():
         rows = [samples[p] for p in positions]
         if points == 0:
-            problems = {row: (None, "no measurements", "") for row in range(len(rows))}
+            problems = dict.fromkeys(range(len(rows)), NO_POINTS)
         else:
             arrays = {name: np.stack([getattr(data, name) for data in rows])
                       for name, values in rows[0]._arrays().items() if values is not None}
@@ -275,6 +276,10 @@ def failures(samples) -> dict[int, str]:
         for row, (_, message, hint) in problems.items():
             found[positions[row]] = str(DataError(message, rows[row].name, None, hint))
     return found
+
+
+# The problem of a measurement set without points, as `_problems` gives the others'.
+NO_POINTS = (None, "no measurements", "the file has a header but no data lines")
 
 
 def _problems(arrays: dict, geometry_only: bool = False) -> dict[int, tuple]:
@@ -294,12 +299,14 @@ def _problems(arrays: dict, geometry_only: bool = False) -> dict[int, tuple]:
     for name in (angles if geometry_only else arrays):
         values = arrays[name]
         for row, i in new(~np.isfinite(values)):
-            problems[row] = (i, f"{name} is {values[row, i]}", "every value must be a finite number")
+            problems[row] = (i, f"{name} is {values[row, i]}",
+                             "every value must be a finite number")
     with np.errstate(invalid="ignore", over="ignore"):  # rows flagged above hold NaN or inf
         theta = np.degrees(np.concatenate([arrays["theta_i"], arrays["theta_r"]], axis=1))
         largest = theta.max(axis=1)
-        radians = (largest > 0) & (largest <= np.pi / 2 + 1e-6) & (theta.shape[1] > 6)
-        for row, _ in new(radians):  # more than 3 points, every zenith angle tiny
+        points = arrays["theta_i"].shape[1]
+        radians = (largest > 0) & (largest <= np.pi / 2 + 1e-6) & (points > 3)
+        for row, _ in new(radians):  # every zenith angle tiny
             problems[row] = (None, f"all zenith angles are at most {largest[row]:.4f} deg",
                              "they look like radians; files hold degrees (multiply by 180/pi)")
         for name in ("theta_i", "theta_r"):

@@ -91,6 +91,7 @@ from brdfjax.fitting.fit import (
     solved_fit,
 )
 from brdfjax.fitting.objective import (
+    NOTHING_TO_FIT,
     Problem,
     bucket,
     normalised,
@@ -248,7 +249,7 @@ def _chunk_fits(samples, model, seeds, bounds, config, devices, chunk_size, sett
     """Check, prepare and fit the samples a chunk at a time; yield a `_ChunkFit` each.
 
     A chunk's samples are checked and prepared together, as arrays (`failures`,
-    `_targets`, `_scenes`): per-sample Python cost more than the fit of a small linear
+    `_chunk_targets`, `_scenes`): per-sample Python cost more than the fit of a small linear
     sample (a Ross-Li pixel)."""
     # Stable sort by geometry, so that samples sharing one land in the same chunks.
     keys = [_geometry_key(data) for data in samples]
@@ -262,22 +263,26 @@ def _chunk_fits(samples, model, seeds, bounds, config, devices, chunk_size, sett
                   in failures([samples[i] for i in block]).items()}
         checked = [i for i in block if i not in failed]
         points = max((bucket(len(samples[i])) for i in checked), default=0)
-        targets, weights, usable = _targets([samples[i] for i in checked], points)
-        failed.update({i: f"{samples[i].name}: every weighted measurement is zero; nothing "
-                          "to fit" for i, ok in zip(checked, usable) if not ok})
+        targets, weights, usable = _chunk_targets([samples[i] for i in checked], points)
+        failed.update({i: f"{samples[i].name}: {NOTHING_TO_FIT}"
+                       for i, ok in zip(checked, usable) if not ok})
         indices = [i for i, ok in zip(checked, usable) if ok]
         if not indices:
             yield _ChunkFit([], failed)
             continue
+        # Padded as far as the fitted samples need (not those left out just above).
+        points = max(bucket(len(samples[i])) for i in indices)
+        targets, weights = targets[usable, :points], weights[usable, :points]
         # After the checks: each geometry is made from angles that passed them.
-        distinct = {keys[i]: i for i in reversed(indices)}  # key: its first sample
-        row_of = {key: row for row, key in enumerate(reversed(distinct))}
-        scene = _scenes([samples[i] for i in reversed(distinct.values())], model, points)
+        distinct: dict[bytes, int] = {}  # each geometry's first sample
+        for i in indices:
+            distinct.setdefault(keys[i], i)
+        row_of = {key: row for row, key in enumerate(distinct)}
+        scene = _scenes([samples[i] for i in distinct.values()], model, points)
         tic = time.perf_counter()
         (searched, polished), padded = _run_chunk(
-            scene, np.array([row_of[keys[i]] for i in indices]), targets[usable],
-            weights[usable], model, seeds[indices], bounds, config, devices, chunk_size,
-            settings)
+            scene, np.array([row_of[keys[i]] for i in indices]), targets, weights, model,
+            seeds[indices], bounds, config, devices, chunk_size, settings)
         if resumed_steps and model.searched_size:
             polished = _resume_slow(polished, padded, bounds, devices[0], resumed_steps)
         best, status, evaluations = polish_summary(polished)
@@ -286,9 +291,10 @@ def _chunk_fits(samples, model, seeds, bounds, config, devices, chunk_size, sett
                         fitted, units, padded, time.perf_counter() - tic)
 
 
-def _targets(samples: list, points: int) -> tuple[np.ndarray, ...]:
-    """`brdfjax.fitting.objective.normalised` of each sample, as (samples, points) arrays
-    and the flags (samples,); samples of one length are stacked and done together."""
+def _chunk_targets(samples: list, points: int) -> tuple[np.ndarray, ...]:
+    """`brdfjax.fitting.objective.normalised` of each sample: targets and weights (samples,
+    points) and whether each sample is usable (samples,); samples of one length are stacked
+    and done together."""
     count = len(samples)
     targets, weights = np.zeros((count, points)), np.zeros((count, points))
     usable = np.zeros(count, dtype=bool)

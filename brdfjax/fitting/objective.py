@@ -174,6 +174,9 @@ def problem(data: Measurements, model: Model = FIVE, dtype=jnp.float64,
     return Problem(geometry, jnp.asarray(target, dtype), jnp.asarray(weight, dtype), model)
 
 
+NOTHING_TO_FIT = "every weighted measurement is zero; nothing to fit"
+
+
 def normalised_targets(data: Measurements, points: int) -> tuple[np.ndarray, np.ndarray]:
     """`Problem.target` and `Problem.weight` as host arrays, padded to ``points``.
 
@@ -182,7 +185,7 @@ def normalised_targets(data: Measurements, points: int) -> tuple[np.ndarray, np.
     """
     target, weight, usable = normalised(data.brdf, data.theta_r, data.weights, points)
     if not usable:
-        raise ValueError(f"{data.name}: every weighted measurement is zero; nothing to fit")
+        raise ValueError(f"{data.name}: {NOTHING_TO_FIT}")
     return target, weight
 
 
