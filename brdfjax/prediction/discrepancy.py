@@ -11,11 +11,25 @@ prediction where nothing was measured:
 - its inputs are the half and difference angles of Rusinkiewicz's coordinates,
   ``(theta_h, theta_d)`` in radians, plus the folded difference azimuth ``phi_d`` (in
   ``[0, pi/2]``: reciprocity and the mirror symmetry of an isotropic BRDF) when the training
-  data leave the plane of incidence (in the plane it is constant);
-- the process has a constant mean, an ARD squared-exponential kernel (one length scale per
-  input) and a white-noise term, all learned by maximising the marginal likelihood
-  (the best of a few candidate starts, `START_LENGTHS` x `START_NOISE`, then optimistix
-  BFGS, inside the box `HYPER_BOX`); tinygp evaluates the likelihood;
+  data leave the plane of incidence (in the plane it is constant), plus the incidence
+  ``theta_i`` (last column);
+- the process has a constant mean and the kernel
+  ``amplitude^2 SE(angles) (share + (1 - share) SE(theta_i))``, with SE a squared
+  exponential of one length scale per input (ARD), plus a white-noise term, all learned by
+  maximising the marginal likelihood (the best of a few candidate starts, `START_LENGTHS` x
+  `START_NOISE`, then optimistix BFGS, inside the box `HYPER_BOX`); tinygp evaluates the
+  likelihood. The ``share`` of the correction is common to every incidence; the rest
+  varies with the incidence, so that an unmeasured incidence gets the shape error of its
+  neighbours, weighted by how near they are, and a ``sigma`` that grows with the distance
+  to them: a held-out incidence of the calibration (predicted across a wider gap) and a
+  new one are then scored on one scale. Its length scale is at least
+  ``HYPER_BOX["incidence"][0]`` (0.4 rad, 23 deg: about the spacing of a goniometer's
+  incidences), so that it never becomes an independent offset per measured incidence.
+  Chosen on the runs bench_predictive.DECIDE (0.2 and 0.4 rad tried) and confirmed on the
+  others (BENCHMARKS.md, predictive-discrepancy). The incidence input is a choice: the
+  correction learns measured data, whose errors (the model's and the instrument's) follow
+  the incidence of each scan, and it is not reciprocal in ``theta_i <-> theta_r`` (the
+  angle inputs are);
 - the prediction is ``(y_hat + floor) exp(mu) - floor``; ``sigma`` (the predictive standard
   deviation of a new measurement's ``r``, noise included) scales the conformal score.
 
@@ -48,14 +62,19 @@ BLOCK = 16384
 START_LENGTHS = (0.05, 0.15, 0.5, 1.5)
 START_NOISE = (0.1, 0.5)
 # (low, high) of amplitude, length scales (rad), noise (log units); the mean is free.
-HYPER_BOX = {"amplitude": (1e-3, 5.0), "length": (1e-2, 5.0), "noise": (1e-3, 2.0)}
+# The incidence's length scale starts at `START_INCIDENCE` (rad) and the common share at 1/2.
+START_INCIDENCE = 0.6
+# (low, high) of amplitude, the angles' and the incidence's length scales (rad), noise (log
+# units); the mean and the share (a logistic of the free value) are free.
+HYPER_BOX = {"amplitude": (1e-3, 5.0), "length": (1e-2, 5.0), "incidence": (0.4, 5.0),
+             "noise": (1e-3, 2.0)}
 MAX_STEPS = 60
 RTOL = 1e-5
 _FAR = 1e4  # padding coordinates: exp(-(1e4 / 5)^2 / 2) is exactly 0 in float64
 
 
 def features(theta_i, theta_r, phi_r, azimuth: bool) -> np.ndarray:
-    """Rusinkiewicz's ``(theta_h, theta_d[, phi_d folded])`` (N, 2 or 3), radians."""
+    """Rusinkiewicz's ``(theta_h, theta_d[, phi_d folded])`` then ``theta_i`` (N, 3 or 4), radians."""
     theta_i, theta_r, phi_r = np.broadcast_arrays(*(np.asarray(x, float)
                                                     for x in (theta_i, theta_r, phi_r)))
     w_i = np.stack([np.sin(theta_i), np.zeros_like(theta_i), np.cos(theta_i)], axis=-1)
@@ -79,6 +98,7 @@ def features(theta_i, theta_r, phi_r, azimuth: bool) -> np.ndarray:
         del z
         phi_d = np.mod(np.arctan2(y, x), np.pi)
         columns.append(np.minimum(phi_d, np.pi - phi_d))
+    columns.append(theta_i)
     return np.stack(columns, axis=-1)
 
 
@@ -98,13 +118,16 @@ def subsample(order_keys, limit: int = MAX_POINTS) -> np.ndarray:
 
 
 def _physical(u, dims: int):
-    """Hyperparameters from unconstrained ``u``: (mean, amplitude, lengths (dims,), noise)."""
+    """Hyperparameters from unconstrained ``u``: (mean, amplitude, lengths (dims,: the
+    angles', then the incidence's), share, noise)."""
     def boxed(x, name):
         low, high = HYPER_BOX[name]
         return low * (high / low) ** jax.nn.sigmoid(x)
 
-    return (u[0], boxed(u[1], "amplitude"), boxed(u[2:2 + dims], "length"),
-            boxed(u[2 + dims], "noise"))
+    lengths = jnp.concatenate([boxed(u[2:1 + dims], "length"),
+                               boxed(u[1 + dims:2 + dims], "incidence")])
+    return (u[0], boxed(u[1], "amplitude"), lengths, jax.nn.sigmoid(u[2 + dims]),
+            boxed(u[3 + dims], "noise"))
 
 
 def _unconstrained(value, name):
@@ -113,19 +136,31 @@ def _unconstrained(value, name):
     return np.log(t / (1 - t))
 
 
+def _angles(x):
+    return x[:-1]
+
+
+def _incidence(x):
+    return x[-1:]
+
+
 def _kernel(u, dims: int):
     """The tinygp kernel of hyperparameters ``u`` on ``dims`` inputs (no noise)."""
     from tinygp import kernels, transforms
 
-    _, amplitude, lengths, _ = _physical(u, dims)
-    return amplitude**2 * transforms.Linear(1.0 / lengths, kernels.ExpSquared())
+    _, amplitude, lengths, share, _ = _physical(u, dims)
+    angles = transforms.Transform(_angles, transforms.Linear(1.0 / lengths[:-1],
+                                                             kernels.ExpSquared()))
+    incidence = transforms.Transform(_incidence, transforms.Linear(1.0 / lengths[-1:],
+                                                                   kernels.ExpSquared()))
+    return amplitude**2 * angles * (kernels.Constant(share) + (1 - share) * incidence)
 
 
 def _process(u, x):
     """The tinygp process of hyperparameters ``u`` on inputs ``x`` (M, D)."""
     from tinygp import GaussianProcess
 
-    mean, _, _, noise = _physical(u, x.shape[-1])
+    mean, *_, noise = _physical(u, x.shape[-1])
     return GaussianProcess(_kernel(u, x.shape[-1]), x, diag=noise**2, mean=mean)
 
 
@@ -135,7 +170,7 @@ def _log_likelihood(u, x, r, count):
     A padded point is independent of every other (the kernel between them is 0) and holds
     the mean, so it adds ``-log(2 pi (amplitude^2 + noise^2)) / 2`` exactly: taken back.
     """
-    mean, amplitude, _, noise = _physical(u, x.shape[-1])
+    mean, amplitude, *_, noise = _physical(u, x.shape[-1])
     padded = r.shape[0] - count
     total = _log_probability(u, x, jnp.where(jnp.arange(r.shape[0]) < count, r, mean))
     return total + 0.5 * padded * jnp.log(2 * jnp.pi * (amplitude**2 + noise**2))
@@ -175,7 +210,7 @@ _log_probability.defvjp(_log_probability_forward, _log_probability_backward)
 
 def _covariance(u, x):
     """The covariance matrix of the process of ``u`` on ``x`` (M, M), noise included."""
-    _, _, _, noise = _physical(u, x.shape[-1])
+    noise = _physical(u, x.shape[-1])[-1]
     return _kernel(u, x.shape[-1])(x, x) + noise**2 * jnp.eye(x.shape[0])
 
 
@@ -217,7 +252,7 @@ def _condition(u, x, r, count):
 def _predict(u, x, alpha, whiten, x_test):
     """Mean and standard deviation (noise included) of ``r`` at ``x_test`` (T, D), from
     `_condition`'s ``alpha`` and ``whiten``."""
-    mean, amplitude, _, noise = _physical(u, x.shape[-1])
+    mean, amplitude, *_, noise = _physical(u, x.shape[-1])
     cross = _kernel(u, x.shape[-1])(x_test, x)  # (T, M)
     variance = amplitude**2 - jnp.sum((cross @ whiten.T) ** 2, axis=1) + noise**2
     return mean + cross @ alpha, jnp.sqrt(jnp.maximum(variance, noise**2))
@@ -232,7 +267,8 @@ class Discrepancy:
         azimuth: whether ``phi_d`` is an input (out-of-plane training data).
         mean, amplitude, noise: the learned constant mean, kernel amplitude and white noise
             (log units: 0.1 is about 10 %).
-        lengths: the learned length scale of each input (rad).
+        lengths: the learned length scale of each input (rad), the incidence's last.
+        share: the part of the kernel's variance common to every incidence (0-1).
         points: how many training points the process holds (after `subsample`).
     """
 
@@ -241,6 +277,7 @@ class Discrepancy:
     mean: float
     amplitude: float
     lengths: tuple
+    share: float
     noise: float
     points: int
     _u: np.ndarray
@@ -268,9 +305,9 @@ class Discrepancy:
         return (np.maximum(model_brdf, 0.0) + self.floor) * np.exp(mu) - self.floor
 
     def to_dict(self) -> dict:
-        names = ("theta_h", "theta_d", "phi_d")[:len(self.lengths)]
+        names = ("theta_h", "theta_d", "phi_d")[:len(self.lengths) - 1] + ("theta_i",)
         return {"kind": "gp", "floor": self.floor, "mean": self.mean,
-                "amplitude": self.amplitude, "noise": self.noise,
+                "amplitude": self.amplitude, "noise": self.noise, "share": self.share,
                 "length_scales_rad": dict(zip(names, self.lengths)),
                 "training_points": self.points}
 
@@ -311,7 +348,8 @@ def fit_discrepancies(sets: list, floor: float, azimuth: bool) -> list[Discrepan
     for _, res in sets:
         spread = max(float(np.std(res)), 2e-3)
         starts.append([np.concatenate([[np.mean(res)], [_unconstrained(spread, "amplitude")],
-                                       np.full(dims, _unconstrained(scale, "length")),
+                                       np.full(dims - 1, _unconstrained(scale, "length")),
+                                       [_unconstrained(START_INCIDENCE, "incidence"), 0.0],
                                        [_unconstrained(fraction * spread, "noise")]])
                        for scale in START_LENGTHS for fraction in START_NOISE])
     lanes = -(-len(sets) // 4) * 4  # a multiple of 4: few compiled batch sizes
@@ -321,8 +359,8 @@ def fit_discrepancies(sets: list, floor: float, azimuth: bool) -> list[Discrepan
     u = np.asarray(u)
     fitted = []
     for k, size in enumerate(sizes):
-        mean, amplitude, lengths, noise = (np.asarray(v) for v in _physical(u[k], dims))
+        mean, amplitude, lengths, share, noise = (np.asarray(v) for v in _physical(u[k], dims))
         fitted.append(Discrepancy(floor, azimuth, float(mean), float(amplitude),
-                                  tuple(float(v) for v in lengths), float(noise), size,
-                                  u[k], x[k], r[k]))
+                                  tuple(float(v) for v in lengths), float(share), float(noise),
+                                  size, u[k], x[k], r[k]))
     return fitted
