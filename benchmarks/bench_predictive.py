@@ -39,16 +39,19 @@ RUNS = sorted((REPO / "data" / "real" / "uaz-loft-rt300s" / "raw").glob("*_v1o0*
     (REPO / "data" / "real" / "uaz-loft-rt300s" / "raw_legacy_1deg").glob("0*.xls"))
 
 
-def fit_without(data, incidence, model):
+def fit_without(data, incidence, model, discrepancy="none"):
     """``(model name, fit)`` of ``data`` with ``incidence`` held out. ``auto``: the model
-    `brdfjax.prediction.selection.compare_models` ranks first on the training incidences alone (as
-    ``brdfjax fit --model auto`` would choose)."""
+    `brdfjax.prediction.selection.compare_models` chooses on the training incidences alone, as
+    ``brdfjax fit --model auto`` would: the lowest cv_error, or with ``discrepancy="gp"``
+    the lowest cv_error of the model times its learned discrepancy (``Comparison.predictor``,
+    what ``fit --model auto --predict`` uses)."""
     import brdfjax
     from brdfjax.prediction.selection import compare_models
 
     if model == "auto":
         training = data.select(~data.incidence_mask([incidence]))
-        model = compare_models(training, discrepancy="none").best.name
+        comparison = compare_models(training, discrepancy=discrepancy)
+        model = (comparison.predictor if discrepancy == "gp" else comparison.best).name
     return model, brdfjax.fit(data, model=model, validate_incidences_deg=[incidence])
 
 
@@ -168,22 +171,27 @@ def repeatability(paths) -> float:
 
 
 def held_out_both(data, model):
-    """Every interior incidence held out in turn, one fit and cross-validation each, both
-    intervals from it: ``{kind: (inside95, inside68, half-widths, relative errors)}``, the
-    models used, and the first fold's predictions (for the figure)."""
+    """Every interior incidence held out in turn, one fit and cross-validation for each
+    model chosen, both intervals from it (``auto`` may choose one model for each kind):
+    ``{kind: (inside95, inside68, half-widths, relative errors)}``, ``{kind: models used}``,
+    and the first fold's predictions (for the figure)."""
     import warnings
 
     from brdfjax.prediction.cross_validation import cross_validate
     from brdfjax.prediction.intervals import calibrate, predict
 
     out = {kind: ([], [], [], []) for kind in ("none", "gp")}
-    used, first = [], {}
+    used, first = {kind: [] for kind in out}, {}
     for incidence in data.incidences_deg[1:-1]:
-        chosen, result = fit_without(data, incidence, model)
-        used.append(chosen)
-        validation = cross_validate(result.training, result.model, bounds=result.bounds)
         held = data.at_incidences([incidence])
+        fitted = {}
         for kind, lists in out.items():
+            chosen, result = fit_without(data, incidence, model, kind)
+            used[kind].append(chosen)
+            if chosen not in fitted:
+                fitted[chosen] = (result, cross_validate(result.training, result.model,
+                                                         bounds=result.bounds))
+            result, validation = fitted[chosen]
             calibration = calibrate(result.training, validation, discrepancy=kind,
                                     fitted=result.vector)
             with warnings.catch_warnings():
@@ -243,10 +251,11 @@ def bench_discrepancy(models, runs):
                   "|---|---|---|---|---|---|---|"]
         pooled = {k: {"decide": [[], [], [], []], "confirm": [[], [], [], []]}
                   for k in ("none", "gp")}
-        choices = []
+        choices = {"none": [], "gp": []}
         for path in runs:
             results, used, first = held_out_both(brdfjax.load(path), model)
-            choices += used
+            for kind in choices:
+                choices[kind] += used[kind]
             group = "decide" if path.name in DECIDE else "confirm"
             for kind, arrays in results.items():
                 for store, values in zip(pooled[kind][group], arrays):
@@ -281,8 +290,13 @@ def bench_discrepancy(models, runs):
                 f"{100 * np.median(cells[1][3]):.1f} % (none / gp).")
             lines.append("")
         if model == "auto":
-            counts = ", ".join(f"{n} {choices.count(n)}" for n in sorted(set(choices)))
-            lines += [f"`auto` chose, over the {len(choices)} folds: {counts}.", ""]
+            for kind, what in (("none", "by cv_error, for the model alone"),
+                               ("gp", "by the cv_error of the model times its discrepancy, "
+                                      "for the corrected prediction")):
+                counts = ", ".join(f"{n} {choices[kind].count(n)}"
+                                   for n in sorted(set(choices[kind])))
+                lines += [f"`auto` chose {what}, over the {len(choices[kind])} folds: "
+                          f"{counts}.", ""]
     if figure is not None:
         draw_bands(*figure)
         lines += [(f"One held-out incidence of {figure[0].name} with both bands "

@@ -248,3 +248,31 @@ def test_the_models_plot_keeps_its_legends_off_the_curves(tmp_path):
         assert not legend.overlaps(ax.get_window_extent(renderer)), ax.get_title()
         assert figure.bbox.contains(legend.x0, legend.y0)  # and is not cut off
     assert (tmp_path / "models.png").stat().st_size > 20000
+
+
+def test_model_auto_predicts_with_the_model_best_corrected(monkeypatch, capsys):
+    """``fit --model auto`` with --predict chooses by the cv_error of each model times its
+    learned discrepancy (``Comparison.predictor``), and says so; without it, by cv_error.
+    (Two candidates instead of ten, to keep the test short; the comparison is real.)"""
+    import brdfjax.prediction.selection as selection
+    from brdfjax.commands.fitting import choose_model
+
+    real, seen = selection.compare_models, []
+
+    def two_candidates(data, *args, **kwargs):
+        comparison = real(data, ["lambert", "five"], **kwargs)
+        seen.append((kwargs["discrepancy"], comparison))
+        return comparison
+
+    monkeypatch.setattr(selection, "compare_models", two_candidates)
+    data = load(DATA / "synthetic" / "white_paint.csv")
+    assert choose_model(data, 0) == seen[-1][1].best.name
+    assert seen[-1][0] == "none"
+    chosen = choose_model(data, 0, predicting=True)
+    discrepancy, comparison = seen[-1]
+    assert discrepancy == "gp" and chosen == comparison.predictor.name
+    assert np.isfinite(comparison.predictor.corrected_cv_error)
+    assert all(comparison.predictor.corrected_cv_error <= s.corrected_cv_error
+               for s in comparison.scores)
+    assert (f"--model auto: predicting with {chosen} and its learned discrepancy"
+            in capsys.readouterr().out)
