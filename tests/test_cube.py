@@ -211,8 +211,16 @@ def test_dask_fits_the_cube_chunk_by_chunk(cube, reference, dask_scheduler, tmp_
     code = main(command(cube, out, "--scheduler", dask_scheduler)[3:])
     assert code == 1 and f"{COUNT - 1} of {COUNT} fitted" in capsys.readouterr().err
     final, whole = read(out), read(reference[0])
+    assert set(final) == set(whole)
     for name in final:
-        np.testing.assert_array_equal(final[name], whole[name], err_msg=name)
+        if np.issubdtype(np.asarray(final[name]).dtype, np.floating):
+            # the workers may lay a chunk out on their devices otherwise than the local run
+            # (last bits: 2.5e-11 in one flat parameter seen on an AMD EPYC machine); 1e-9
+            # is what a batch promises against single fits (brdfjax.fitting.batch)
+            np.testing.assert_allclose(final[name], whole[name], rtol=1e-9, atol=0,
+                                       err_msg=name)
+        else:
+            np.testing.assert_array_equal(final[name], whole[name], err_msg=name)
 
 
 def test_a_block_with_uncertainty_keeps_its_fits_and_adds_their_std(cube):
