@@ -290,13 +290,14 @@ def bench_discrepancy(models, runs):
                 f"{100 * np.median(cells[1][3]):.1f} % (none / gp).")
             lines.append("")
         if model == "auto":
-            for kind, what in (("none", "by cv_error, for the model alone"),
-                               ("gp", "by the cv_error of the model times its discrepancy, "
-                                      "for the corrected prediction")):
+            ways = {"none": "by cv_error, for the model alone",
+                    "gp": ("by the cv_error of the model times its discrepancy, for the "
+                           "corrected prediction")}
+            for kind, what in ways.items():
                 counts = ", ".join(f"{n} {choices[kind].count(n)}"
                                    for n in sorted(set(choices[kind])))
-                lines += [f"`auto` chose {what}, over the {len(choices[kind])} folds: "
-                          f"{counts}.", ""]
+                lines += [(f"`auto` chose {what}, over the {len(choices[kind])} folds: "
+                           f"{counts}."), ""]
     if figure is not None:
         draw_bands(*figure)
         lines += [(f"One held-out incidence of {figure[0].name} with both bands "
