@@ -254,8 +254,8 @@ def test_model_auto_predicts_with_the_model_best_corrected(monkeypatch, capsys):
     """``fit --model auto`` with --predict chooses by the cv_error of each model times its
     learned discrepancy (``Comparison.predictor``), and says so; without it, by cv_error.
     (Two candidates instead of ten, to keep the test short; the comparison is real.)"""
-    from brdfjax.prediction import selection
     from brdfjax.commands.fitting import choose_model
+    from brdfjax.prediction import selection
 
     real, seen = selection.compare_models, []
 
