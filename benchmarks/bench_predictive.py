@@ -39,20 +39,30 @@ RUNS = sorted((REPO / "data" / "real" / "uaz-loft-rt300s" / "raw").glob("*_v1o0*
     (REPO / "data" / "real" / "uaz-loft-rt300s" / "raw_legacy_1deg").glob("0*.xls"))
 
 
-def fit_without(data, incidence, model, discrepancy="none"):
+def fit_without(data, incidence, model):
     """``(model name, fit)`` of ``data`` with ``incidence`` held out. ``auto``: the model
-    `brdfjax.prediction.selection.compare_models` chooses on the training incidences alone, as
-    ``brdfjax fit --model auto`` would: the lowest cv_error, or with ``discrepancy="gp"``
-    the lowest cv_error of the model times its learned discrepancy (``Comparison.predictor``,
-    what ``fit --model auto --predict`` uses)."""
+    `brdfjax.prediction.selection.compare_models` ranks first on the training incidences alone (as
+    ``brdfjax fit --model auto`` would choose)."""
     import brdfjax
-    from brdfjax.prediction.selection import compare_models
 
     if model == "auto":
-        training = data.select(~data.incidence_mask([incidence]))
-        comparison = compare_models(training, discrepancy=discrepancy)
-        model = (comparison.predictor if discrepancy == "gp" else comparison.best).name
+        model = choices(data, incidence, discrepancy="none")["none"]
     return model, brdfjax.fit(data, model=model, validate_incidences_deg=[incidence])
+
+
+def choices(data, incidence, discrepancy: str) -> dict:
+    """``--model auto``'s choices with ``incidence`` held out, as ``brdfjax fit`` makes them:
+    ``{"none": lowest cv_error}`` and, with ``discrepancy="gp"``, ``"gp"``: the lowest
+    cv_error of the model times its learned discrepancy (``Comparison.predictor``), which
+    ``fit --model auto --predict`` uses. One comparison gives both."""
+    from brdfjax.prediction.selection import compare_models
+
+    comparison = compare_models(data.select(~data.incidence_mask([incidence])),
+                                discrepancy=discrepancy)
+    chosen = {"none": comparison.best.name}
+    if discrepancy == "gp":
+        chosen["gp"] = comparison.predictor.name
+    return chosen
 
 
 def held_out_predictions(data, model):
@@ -177,6 +187,7 @@ def held_out_both(data, model):
     and the first fold's predictions (for the figure)."""
     import warnings
 
+    import brdfjax
     from brdfjax.prediction.cross_validation import cross_validate
     from brdfjax.prediction.intervals import calibrate, predict
 
@@ -184,14 +195,16 @@ def held_out_both(data, model):
     used, first = {kind: [] for kind in out}, {}
     for incidence in data.incidences_deg[1:-1]:
         held = data.at_incidences([incidence])
+        chosen = (choices(data, incidence, discrepancy="gp") if model == "auto" else
+                  dict.fromkeys(out, model))
         fitted = {}
+        for name in set(chosen.values()):
+            result = brdfjax.fit(data, model=name, validate_incidences_deg=[incidence])
+            fitted[name] = (result, cross_validate(result.training, result.model,
+                                                   bounds=result.bounds))
         for kind, lists in out.items():
-            chosen, result = fit_without(data, incidence, model, kind)
-            used[kind].append(chosen)
-            if chosen not in fitted:
-                fitted[chosen] = (result, cross_validate(result.training, result.model,
-                                                         bounds=result.bounds))
-            result, validation = fitted[chosen]
+            used[kind].append(chosen[kind])
+            result, validation = fitted[chosen[kind]]
             calibration = calibrate(result.training, validation, discrepancy=kind,
                                     fitted=result.vector)
             with warnings.catch_warnings():

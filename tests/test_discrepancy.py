@@ -38,23 +38,24 @@ def direct_process(x, r, fitted):
     return log_likelihood, predict
 
 
-@pytest.fixture(scope="module")
-def smooth_sets():
+@pytest.fixture(scope="module", params=[3, 4], ids=["in-plane", "out-of-plane"])
+def smooth_sets(request):
     """Three training sets of different sizes (so two are padded) of a smooth residual, on
-    two angles and an incidence (the last input)."""
+    two angles (three out of the plane) and an incidence (the last input)."""
+    columns = request.param
     rng = np.random.default_rng(3)
     sets = []
     for size in (20, 29, 45):
-        x = rng.uniform(0.0, 1.3, (size, 3))
-        r = (0.3 * np.sin(3 * x[:, 0]) + 0.1 * x[:, 1] + 0.1 * np.cos(x[:, 2])
+        x = rng.uniform(0.0, 1.3, (size, columns))
+        r = (0.3 * np.sin(3 * x[:, 0]) + 0.1 * x[:, 1] + 0.1 * np.cos(x[:, -1])
              + 0.02 * rng.standard_normal(size))
         sets.append((x, r))
-    return sets, discrepancy.fit_discrepancies(sets, floor=0.01, azimuth=False)
+    return sets, discrepancy.fit_discrepancies(sets, floor=0.01, azimuth=columns == 4)
 
 
 def test_process_matches_a_direct_numpy_gaussian_process(smooth_sets):
     sets, fitted = smooth_sets
-    x_test = np.random.default_rng(4).uniform(0.0, 1.3, (40, 3))
+    x_test = np.random.default_rng(4).uniform(0.0, 1.3, (40, sets[0][0].shape[1]))
     for (x, r), process in zip(sets, fitted):
         log_likelihood, direct = direct_process(x, r, process)
         # the padded likelihood, padding removed, is the likelihood of the real points
@@ -75,7 +76,7 @@ def test_process_matches_a_direct_numpy_gaussian_process(smooth_sets):
 def test_likelihood_gradient_matches_finite_differences(smooth_sets):
     _, fitted = smooth_sets
     process = fitted[1]
-    u = process._u + np.array([0.1, -0.2, 0.3, -0.1, 0.2, -0.3, 0.1])  # away from the optimum
+    u = process._u + 0.2 * np.sin(1.0 + np.arange(process._u.size))  # away from the optimum
     args = (process._x, process._r, float(process.points))
     gradient = np.asarray(jax.grad(discrepancy._log_likelihood)(u, *args))
     step = 1e-6
@@ -95,6 +96,37 @@ def test_hyperparameters_are_a_maximum_of_the_likelihood(smooth_sets):
                 # 1e-5: a length scale driven to its bound's flat end still gains ~1e-6
                 assert float(discrepancy._log_likelihood(process._u + 0.05 * sign * e,
                                                          *args)) <= best + 1e-5
+
+
+def test_learned_hyperparameters_stay_in_their_box_and_are_reported_by_name(smooth_sets):
+    sets, fitted = smooth_sets
+    names = ["theta_h", "theta_d", "phi_d", "theta_i"]
+    if sets[0][0].shape[1] == 3:
+        names.remove("phi_d")
+    low, high = discrepancy.HYPER_BOX["incidence"]
+    for process in fitted:
+        record = process.to_dict()
+        assert list(record["length_scales_rad"]) == names
+        assert low <= process.lengths[-1] <= high and 0.0 < process.share < 1.0
+
+
+def test_one_incidence_gives_a_correction_shared_by_every_incidence():
+    """With one training incidence the share cannot be learned: it is 1, and the process
+    predicts the same correction at any other incidence."""
+    rng = np.random.default_rng(8)
+    x = np.column_stack([rng.uniform(0.0, 1.3, (30, 2)), np.full(30, 0.5)])
+    r = 0.3 * np.sin(3 * x[:, 0]) + 0.02 * rng.standard_normal(30)
+    (process,) = discrepancy.fit_discrepancies([(x, r)], floor=0.01, azimuth=False)
+    assert process.share == 1.0
+    x_test = np.column_stack([rng.uniform(0.0, 1.3, (10, 2)), np.full(10, 0.5)])
+    moved = x_test.copy()
+    moved[:, -1] = 1.2
+    conditioned = discrepancy._condition(process._u, process._x, process._r,
+                                         float(process.points))
+    same, other = (np.asarray(discrepancy._predict(process._u, process._x, *conditioned,
+                                                   discrepancy._pad_rows(t, 32))[0])[:10]
+                   for t in (x_test, moved))
+    np.testing.assert_array_equal(same, other)
 
 
 def test_features_are_the_half_and_difference_angles_and_the_incidence():

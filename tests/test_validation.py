@@ -253,26 +253,24 @@ def test_the_models_plot_keeps_its_legends_off_the_curves(tmp_path):
 def test_model_auto_predicts_with_the_model_best_corrected(monkeypatch, capsys):
     """``fit --model auto`` with --predict chooses by the cv_error of each model times its
     learned discrepancy (``Comparison.predictor``), and says so; without it, by cv_error.
-    (Two candidates instead of ten, to keep the test short; the comparison is real.)"""
+    On NiTE on steel A, of lambert and ggx, ggx has the lower cv_error (0.73 % against 51 %)
+    but lambert corrected by its process the lower corrected one (0.11 % against 0.30 %):
+    the two rules choose differently. (Two candidates instead of ten, to keep the test
+    short; the comparison is real.)"""
     from brdfjax.commands.fitting import choose_model
     from brdfjax.prediction import selection
 
     real, seen = selection.compare_models, []
 
     def two_candidates(data, *args, **kwargs):
-        comparison = real(data, ["lambert", "five"], **kwargs)
-        seen.append((kwargs["discrepancy"], comparison))
+        comparison = real(data, ["lambert", "ggx"], **kwargs)
+        seen.append(kwargs["discrepancy"])
         return comparison
 
     monkeypatch.setattr(selection, "compare_models", two_candidates)
-    data = load(DATA / "synthetic" / "white_paint.csv")
-    assert choose_model(data, 0) == seen[-1][1].best.name
-    assert seen[-1][0] == "none"
-    chosen = choose_model(data, 0, predicting=True)
-    discrepancy, comparison = seen[-1]
-    assert discrepancy == "gp" and chosen == comparison.predictor.name
-    assert np.isfinite(comparison.predictor.corrected_cv_error)
-    assert all(comparison.predictor.corrected_cv_error <= s.corrected_cv_error
-               for s in comparison.scores)
-    assert (f"--model auto: predicting with {chosen} and its learned discrepancy"
+    data = load(DATA / "real" / "uaz-loft-rt300s" / "raw" / "NiTE_on_steel_v1o0A_20250915.xls")
+    assert choose_model(data, 0) == "ggx" and seen == ["none"]
+    assert "predicting with" not in capsys.readouterr().out
+    assert choose_model(data, 0, predicting=True) == "lambert" and seen[-1] == "gp"
+    assert ("--model auto: predicting with lambert and its learned discrepancy"
             in capsys.readouterr().out)

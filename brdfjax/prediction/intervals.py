@@ -64,7 +64,8 @@ DISCREPANCIES = ("gp", "none")
 # With a discrepancy, the process-scaled score is kept unless its intervals on the interior
 # held-out points are this many times wider than the relative score's (`calibrate_all`).
 # Chosen on the four runs bench_predictive.DECIDE (ggx and five; 1, 1.25, 1.5, 2 and never
-# tried): 1.25 gave ggx 93 % coverage at a 15 % median half-width and five 97 % at 55 %.
+# tried), with the previous process (angles only, before 03048ac): 1.25 gave ggx 93 % coverage
+# at a 15 % median half-width and five 97 % at 55 %. Not re-chosen for the incidence-aware one.
 SIGMA_PREFERENCE = 1.25
 
 
