@@ -274,3 +274,22 @@ def test_model_auto_predicts_with_the_model_best_corrected(monkeypatch, capsys):
     assert choose_model(data, 0, predicting=True) == "lambert" and seen[-1] == "gp"
     assert ("--model auto: predicting with lambert and its learned discrepancy"
             in capsys.readouterr().out)
+
+
+def test_model_auto_chooses_without_the_held_out_incidences(monkeypatch, tmp_path):
+    """``fit --model auto --validate-incidence 30`` chooses the model on the training
+    incidences alone: the held-out one must not pick the model it then validates."""
+    import brdfjax.commands.fitting as command
+
+    seen = []
+
+    def choose(data, seed, predicting=False):
+        seen.append(sorted(data.incidences_deg))
+        return "lambert"  # the cheapest fit: the choice itself is tested above
+
+    monkeypatch.setattr(command, "choose_model", choose)
+    assert main(["fit", str(DATA / "synthetic" / "white_paint.csv"), "--model", "auto",
+                 "--validate-incidence", "30", "--uncertainty", "none"]) == 0
+    assert main(["fit", str(DATA / "synthetic" / "white_paint.csv"), "--model", "auto",
+                 "--train-incidence", "10,45,60", "--uncertainty", "none"]) == 0
+    assert seen == [[10.0, 21.0, 45.0, 52.0, 60.0], [10.0, 45.0, 60.0]]

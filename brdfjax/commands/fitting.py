@@ -201,8 +201,9 @@ def run_fit(args) -> None:
         from brdfjax.data.formats import load_geometry
 
         geometry = load_geometry(args.predict, **reader_options(args))
-    if args.model == "auto":
-        args.model = choose_model(data, args.seed, predicting=bool(
+    if args.model == "auto":  # chosen on the training incidences alone, as the fit sees them
+        training = data.select(~data.incidence_mask(held_out(data, args)))
+        args.model = choose_model(training, args.seed, predicting=bool(
             (args.predict or args.export) and args.discrepancy == "gp"))
     if args.per_incidence:
         run_per_incidence(data, args)
