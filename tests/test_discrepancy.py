@@ -1,5 +1,6 @@
 """The learned discrepancy (a Gaussian process on the log residual) and its conformal step."""
 
+import dataclasses
 import math
 
 import jax
@@ -108,6 +109,12 @@ def test_learned_hyperparameters_stay_in_their_box_and_are_reported_by_name(smoo
         record = process.to_dict()
         assert list(record["length_scales_rad"]) == names
         assert low <= process.lengths[-1] <= high and 0.0 < process.share < 1.0
+    # a hyperparameter on an edge of its box is named
+    pinned = dataclasses.replace(fitted[0], lengths=(*fitted[0].lengths[:-1], low),
+                                 amplitude=discrepancy.HYPER_BOX["amplitude"][1])
+    assert {"length_theta_i", "amplitude"} <= set(pinned.to_dict()["at_bounds"])
+    assert "length_theta_i" not in fitted[0].to_dict()["at_bounds"] or np.isclose(
+        fitted[0].lengths[-1], low, rtol=1e-6)
 
 
 def test_one_incidence_gives_a_correction_shared_by_every_incidence():

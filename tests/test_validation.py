@@ -128,6 +128,11 @@ def test_prediction_says_where_extrapolation_is_not_calibrated(ggx_data, ggx_val
                                        [np.nan, np.nan])
     with pytest.warns(PredictionWarning, match="1 of 2 points"):
         assert len(predict(ggx_fit, beyond, calibration).warnings) == 1
+    # in-plane training data say nothing of the azimuths between: said, not silent
+    across = Measurements.from_degrees([30.0, 30.0, 30.0], [20.0, 20.0, 20.0],
+                                       [0.0, 90.0, 180.0], [np.nan] * 3)
+    with pytest.warns(PredictionWarning, match="1 of 3 points lie out of the plane"):
+        assert len(predict(ggx_fit, across, calibration).warnings) == 1
 
 
 def test_exported_tables_reproduce_the_corrected_predictions(tmp_path, ggx_data,
@@ -175,6 +180,9 @@ def test_fit_predict_writes_the_corrected_prediction_beside_the_model(tmp_path, 
         assert f"({'the model times its learned correction' if kind == 'gp' else 'the model alone'}"\
                in printed
         assert f"{kind}.bsdf: " in printed and "TIS at 0 deg" in printed
+        fitted = int(np.sum(np.abs(np.degrees(ggx_data.theta_i) - 40.0) > 1e-6))
+        assert (f"({fitted} of the {len(ggx_data)} points were fitted: in-sample, not a "
+                "validation") in printed
     np.testing.assert_array_equal(rows["none"][:, 3], rows["none"][:, 4])  # brdf is the model
     np.testing.assert_array_equal(rows["gp"][:, 4], rows["none"][:, 4])  # the same fit
     assert not np.allclose(rows["gp"][:, 3], rows["gp"][:, 4], rtol=1e-4)

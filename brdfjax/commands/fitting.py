@@ -280,6 +280,18 @@ def run_per_incidence(data, args) -> None:
         write_atomically(args.json, json_text(payload))
 
 
+def fitted_points(geometry, training) -> int:
+    """How many points of ``geometry`` are at a geometry of the ``training`` data."""
+    from brdfjax.data.measurements import geometry_keys
+
+    def keys(data):
+        return [tuple(row) for row in geometry_keys(
+            *np.degrees([data.theta_i, data.theta_r, data.phi_r]))]
+
+    trained = set(keys(training))
+    return sum(key in trained for key in keys(geometry))
+
+
 def failure_reason() -> str:
     """Why a fit found no finite E of Eq. (6), in words a user can act on.
 
@@ -345,6 +357,13 @@ def validate_and_predict(result, data, args, geometry=None):
             line += (f"; measured values inside the 95 % intervals: "
                      f"{100 * prediction.coverage('95'):.1f} %, 68 %: "
                      f"{100 * prediction.coverage('68'):.1f} %")
+            fitted = fitted_points(geometry, result.training)
+            if fitted == len(geometry):
+                line += (f" (all {fitted} points were fitted: in-sample, not a validation; "
+                         "--validate-incidence DEG holds an incidence out)")
+            elif fitted:
+                line += (f" ({fitted} of the {len(geometry)} points were fitted: in-sample, "
+                         "not a validation)")
         print(line)
         for note in prediction.warnings:
             print(f"  warning: {note}")

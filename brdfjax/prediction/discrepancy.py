@@ -310,11 +310,21 @@ class Discrepancy:
         return (np.maximum(model_brdf, 0.0) + self.floor) * np.exp(mu) - self.floor
 
     def to_dict(self) -> dict:
+        """The learned process for JSON; ``at_bounds`` names the hyperparameters within
+        1e-6 (relative) of an edge of `HYPER_BOX`, where the likelihood wanted further."""
         names = ("theta_h", "theta_d", "phi_d")[:len(self.lengths) - 1] + ("theta_i",)
+        boxed = {"amplitude": (self.amplitude, "amplitude"), "noise": (self.noise, "noise"),
+                 **{f"length_{name}": (value, "length") for name, value in
+                    zip(names[:-1], self.lengths[:-1])},
+                 "length_theta_i": (self.lengths[-1], "incidence")}
+        at_bounds = [name for name, (value, box) in boxed.items()
+                     if any(abs(value / edge - 1) < 1e-6 for edge in HYPER_BOX[box])]
         return {"kind": "gp", "floor": self.floor, "mean": self.mean,
-                "amplitude": self.amplitude, "noise": self.noise, "share": self.share,
+                "amplitude": self.amplitude, "noise": self.noise,
+                "share": self.share, "share_meaning": "the part of the correction's variance "
+                "common to every incidence (1: the same at every incidence)",
                 "length_scales_rad": dict(zip(names, self.lengths)),
-                "training_points": self.points}
+                "at_bounds": at_bounds, "training_points": self.points}
 
 
 def _bucket(count: int) -> int:

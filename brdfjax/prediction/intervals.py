@@ -343,7 +343,8 @@ class Prediction:
         measured: the geometry file's measured BRDF, or None.
         model: the model's name.
         discrepancy: ``gp`` or ``none``.
-        warnings: what the user should know (geometry beyond the calibrated range).
+        warnings: what the user should know (geometry beyond the calibrated range, or out
+            of the plane of in-plane training data).
     """
 
     theta_i: np.ndarray
@@ -444,8 +445,15 @@ def predict(result, geometry: Measurements, calibration: Calibration | None = No
                      "the outermost incidences): their intervals assume the model errs there "
                      "as it does one incidence step out; measure nearer incidences to trust "
                      "them")
-        for note in notes:
-            warnings.warn(note, PredictionWarning, stacklevel=2)
+    outside_plane = np.abs(np.sin(geometry.phi_r)) > 1e-9
+    if result.training.in_plane and outside_plane.any():
+        notes.append(f"{int(outside_plane.sum())} of {outside_plane.size} points lie out of the "
+                     "plane of incidence, where the training data have none: the model's "
+                     "shape there is untested, the learned correction is applied as at the "
+                     "same half and difference angles in the plane, and the intervals are "
+                     "calibrated in the plane only; measure out of the plane to trust them")
+    for note in notes:
+        warnings.warn(note, PredictionWarning, stacklevel=2)
     measured = geometry.brdf if not np.all(np.isnan(geometry.brdf)) else None
     return Prediction(incidence, np.degrees(geometry.theta_r), np.degrees(geometry.phi_r),
                       centre, values, measured=measured, model=result.model.name,
@@ -453,4 +461,5 @@ def predict(result, geometry: Measurements, calibration: Calibration | None = No
 
 
 class PredictionWarning(UserWarning):
-    """A prediction the calibration does not cover (geometry beyond `Calibration.reach`)."""
+    """A prediction the calibration does not cover (geometry beyond `Calibration.reach`, or
+    out of the plane of in-plane training data)."""
