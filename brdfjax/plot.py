@@ -116,6 +116,15 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
     from matplotlib.patches import Patch
 
     shade = "0.35"
+    from matplotlib.lines import Line2D
+
+    from brdfjax.models import get
+
+    name = get(model).name
+    handles.append(Line2D([], [], ls="-", color=shade, lw=1.5, label=f"fitted {name} model"))
+    if held:
+        handles.append(Line2D([], [], ls="--", color=shade, lw=1.5,
+                              label=f"fitted {name} model at a held-out incidence"))
     if bands:
         handles += [Patch(color=shade, alpha=BAND_ALPHA["68"], lw=0,
                           label="68 % band of the fitted curve"),
@@ -125,8 +134,6 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
         handles.append(Patch(color=shade, alpha=PREDICTIVE_ALPHA, lw=0,
                              label="95 % predictive band (a new measurement)"))
     if corrected:
-        from matplotlib.lines import Line2D
-
         handles.append(Line2D([], [], ls=":", color=shade, lw=1.5,
                               label="prediction: model x learned discrepancy"))
     ax.legend(handles=handles, fontsize=7, ncol=2)

@@ -97,3 +97,10 @@ def test_fit_curves_pass_through_the_peaks_and_bands_are_named_not_faint(tmp_pat
     assert alpha == sorted(alpha, reverse=True) and alpha[1] >= 0.2  # visible, not faint
     assert not any(word in ax.get_title() for word in ("lighter", "darker"))
     assert is_png(tmp_path / "fit.png")
+    # every line style is named: the fitted curve, and dashed where an incidence is held out
+    assert legend["fitted five model"].get_linestyle() == "-"
+    assert "fitted five model at a held-out incidence" not in legend
+    figure = plot_fit(data, params, tmp_path / "held.png", held_out=[60.0])
+    legend = {t.get_text(): h for t, h in zip(figure.axes[0].get_legend().get_texts(),
+                                               figure.axes[0].get_legend().legend_handles)}
+    assert legend["fitted five model at a held-out incidence"].get_linestyle() == "--"
