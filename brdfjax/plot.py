@@ -471,12 +471,15 @@ def plot_band_widths(bands, path, title: str = "", held_out=()):
     plt.close(fig)
 
 
-def plot_models(data, comparison, path, title: str = "", max_panels: int = 6):
-    """Each model's fit over the data, one panel per incidence (up to ``max_panels``).
+def plot_models(data, comparison, path, title: str = "", max_panels: int = 6,
+                max_models: int = 4):
+    """The best models' fits over the data, one panel per incidence (up to ``max_panels``).
 
-    Solid: the fit on all incidences; dashed: the fit of the fold that held this incidence
-    out, i.e. the model's prediction of an incidence it did not see. The legend gives each
-    model's held-out E at that incidence; it stands below its panel, never over the curves.
+    Drawn: the ``max_models`` lowest cv_error, and the paper's model where it was compared
+    (ten models' curves hid the data and each other; the table has them all). Solid: the
+    fit on all incidences; dashed: the fit of the fold that held this incidence out, i.e.
+    the model's prediction of an incidence it did not see. The legend gives each model's
+    held-out E at that incidence; it stands below its panel, never over the curves.
 
     Returns:
         The matplotlib figure (already saved and closed), for inspection.
@@ -490,13 +493,15 @@ def plot_models(data, comparison, path, title: str = "", max_panels: int = 6):
     rows = -(-len(panels) // columns)
     fig, axes = plt.subplots(rows, columns, figsize=(4.6 * columns, 4.9 * rows), squeeze=False)
     colours = plt.get_cmap("tab10")
+    shown = comparison.ranking[:max_models]
+    shown += [name for name in ("five",) if name in comparison.ranking and name not in shown]
     for ax, fold in zip(axes.ravel(), panels):
         subset = data.at_incidences([fold.low]) if fold.low == fold.high else data.select(
             (np.degrees(data.theta_i) >= fold.low) & (np.degrees(data.theta_i) <= fold.high))
         ax.plot(signed_angle_deg(subset), subset.brdf * np.cos(subset.theta_r), "o", ms=2.5,
-                color="0.3", label="data")
+                color="0.2", label="data", zorder=3)
         angles, signed = curve_angles((fold.low + fold.high) / 2)
-        for k, name in enumerate(comparison.ranking):
+        for k, name in enumerate(shown):
             score = next(s for s in comparison.scores if s.name == name)
             held = next(f for f in score.validation.folds if f.label == fold.label)
             colour = colours(k % 10)
@@ -519,7 +524,11 @@ def plot_models(data, comparison, path, title: str = "", max_panels: int = 6):
                   frameon=False, handlelength=1.5, columnspacing=1.0)
     for ax in axes.ravel()[len(panels):]:
         ax.axis("off")
-    fig.suptitle(title or f"{data.name}: models ranked by cv_error (solid: fit on all "
+    drawn = (f"the {len(shown)} models drawn" if len(shown) == len(comparison.ranking) else
+             f"the {min(max_models, len(shown))} lowest cv_error"
+             + (" and the paper's model" if len(shown) > max_models else "")
+             + f" of {len(comparison.ranking)}")
+    fig.suptitle(title or f"{data.name}: {drawn}, ranked by cv_error (solid: fit on all "
                           "incidences; dashed: fit without that incidence)", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)

@@ -256,6 +256,12 @@ def test_the_models_plot_keeps_its_legends_off_the_curves(tmp_path):
         assert not legend.overlaps(ax.get_window_extent(renderer)), ax.get_title()
         assert figure.bbox.contains(legend.x0, legend.y0)  # and is not cut off
     assert (tmp_path / "models.png").stat().st_size > 20000
+    # only the best models are drawn (ten hid the data), the paper's model always
+    labels = [t.get_text() for t in panels[0].get_legend().get_texts()]
+    assert [label.split()[0] for label in labels] == ["data", "five", "lambert"]
+    one = plot_models(data, comparison, tmp_path / "one.png", max_models=1)
+    drawn = [t.get_text().split()[0] for t in one.axes[0].get_legend().get_texts()]
+    assert drawn == ["data", "five"] and "the 1 lowest cv_error of 2" in one.texts[0].get_text()
 
 
 def test_model_auto_predicts_with_the_model_best_corrected(monkeypatch, capsys):

@@ -25,8 +25,9 @@ def register(subparsers) -> None:
                         "none: the analytic models alone")
     p.add_argument("--json", metavar="OUT", help="write the comparison as JSON")
     p.add_argument("--plot", metavar="OUT",
-                   help="the models over the data, one panel per incidence, with each "
-                        "fold's prediction of the incidence it did not see dashed (PNG)")
+                   help="the four lowest cv_error and the paper's model over the data, one "
+                        "panel per incidence, with each fold's prediction of the incidence it "
+                        "did not see dashed (PNG)")
     add_reader_options(p)
     p.set_defaults(run=run_models)
 
@@ -50,3 +51,6 @@ def run_models(args) -> None:
         from brdfjax.plot import plot_models
 
         replace_atomically(args.plot, lambda path: plot_models(data, comparison, path))
+    written = [path for path in (args.json, args.plot) if path]
+    if written:
+        print(f"wrote {', '.join(written)}")
