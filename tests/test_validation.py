@@ -231,6 +231,7 @@ def test_models_command_ranks_by_cv_error(tmp_path, capsys):
     assert five["cv_error_with_discrepancy"] == pytest.approx(five["cv_error"], rel=0.2)
     out = capsys.readouterr().out
     assert "recommended: five" in out and "+ discrepancy" in out
+    assert f"wrote {tmp_path / 'models.json'}" in out
     assert "to predict unmeasured geometry: five with its learned discrepancy" in out
     assert ("models ranked by cv_error, the mean held-out E of 4 interior folds (21, 30, 45, "
             "52 deg); the end incidences 10 and 60 deg are extrapolation") in out
