@@ -113,13 +113,12 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
     ax.set_title(textwrap.fill(title or data.name, 80), fontsize=10)
     handles, _ = ax.get_legend_handles_labels()
     # The shades are named in the legend, so no title has to say "lighter" or "darker".
-    from matplotlib.patches import Patch
-
-    shade = "0.35"
     from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
 
     from brdfjax.models import get
 
+    shade = "0.35"
     name = get(model).name
     handles.append(Line2D([], [], ls="-", color=shade, lw=1.5, label=f"fitted {name} model"))
     if held:

@@ -445,7 +445,7 @@ def predict(result, geometry: Measurements, calibration: Calibration | None = No
                      "the outermost incidences): their intervals assume the model errs there "
                      "as it does one incidence step out; measure nearer incidences to trust "
                      "them")
-    outside_plane = np.abs(np.sin(geometry.phi_r)) > 1e-9
+    outside_plane = (np.abs(np.sin(geometry.phi_r)) > 1e-9) & (geometry.theta_r > 1e-9)
     if result.training.in_plane and outside_plane.any():
         notes.append(f"{int(outside_plane.sum())} of {outside_plane.size} points lie out of the "
                      "plane of incidence, where the training data have none: the model's "
