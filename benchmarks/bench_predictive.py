@@ -264,11 +264,11 @@ def bench_discrepancy(models, runs):
                   "|---|---|---|---|---|---|---|"]
         pooled = {k: {"decide": [[], [], [], []], "confirm": [[], [], [], []]}
                   for k in ("none", "gp")}
-        choices = {"none": [], "gp": []}
+        models_used = {"none": [], "gp": []}
         for path in runs:
             results, used, first = held_out_both(brdfjax.load(path), model)
-            for kind in choices:
-                choices[kind] += used[kind]
+            for kind in models_used:
+                models_used[kind] += used[kind]
             group = "decide" if path.name in DECIDE else "confirm"
             for kind, arrays in results.items():
                 for store, values in zip(pooled[kind][group], arrays):
@@ -307,9 +307,9 @@ def bench_discrepancy(models, runs):
                     "gp": ("by the cv_error of the model times its discrepancy, for the "
                            "corrected prediction")}
             for kind, what in ways.items():
-                counts = ", ".join(f"{n} {choices[kind].count(n)}"
-                                   for n in sorted(set(choices[kind])))
-                lines += [(f"`auto` chose {what}, over the {len(choices[kind])} folds: "
+                counts = ", ".join(f"{n} {models_used[kind].count(n)}"
+                                   for n in sorted(set(models_used[kind])))
+                lines += [(f"`auto` chose {what}, over the {len(models_used[kind])} folds: "
                            f"{counts}."), ""]
     if figure is not None:
         draw_bands(*figure)

@@ -282,14 +282,8 @@ def run_per_incidence(data, args) -> None:
 
 def fitted_points(geometry, training) -> int:
     """How many points of ``geometry`` are at a geometry of the ``training`` data."""
-    from brdfjax.data.measurements import geometry_keys
-
-    def keys(data):
-        return [tuple(row) for row in geometry_keys(
-            *np.degrees([data.theta_i, data.theta_r, data.phi_r]))]
-
-    trained = set(keys(training))
-    return sum(key in trained for key in keys(geometry))
+    trained = set(map(tuple, training.geometries()))
+    return sum(key in trained for key in map(tuple, geometry.geometries()))
 
 
 def failure_reason() -> str:

@@ -129,14 +129,17 @@ class Measurements:
         """False for geometry alone (`brdfjax.data.formats.load_geometry`: every brdf NaN)."""
         return not bool(np.all(np.isnan(self.brdf)))
 
+    def geometries(self) -> np.ndarray:
+        """Each point's `geometry_keys` row, (N, 3): equal rows, the same geometry."""
+        return geometry_keys(*np.degrees([self.theta_i, self.theta_r, self.phi_r]))
+
     def repeat_groups(self) -> np.ndarray:
         """The index of each point's geometry among the distinct geometries, shape (N,).
 
         Points with the same index were measured at the same geometry (`geometry_keys`);
         each is kept as its own reading.
         """
-        keys = geometry_keys(*np.degrees([self.theta_i, self.theta_r, self.phi_r]))
-        return np.unique(keys, axis=0, return_inverse=True)[1].reshape(-1)
+        return np.unique(self.geometries(), axis=0, return_inverse=True)[1].reshape(-1)
 
     def incidence_bins(self, max_bins: int = 8) -> IncidenceBins:
         """Group the points by incidence angle, for summaries and cross-validation folds.
