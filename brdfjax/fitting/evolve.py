@@ -147,20 +147,25 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
         return (jnp.take_along_axis(z, order[..., None], axis=1),
                 jnp.take_along_axis(errors, order, axis=-1))
 
-    def breed(key, z):
-        """Children of one island (sorted best first): tournament, BLX blend, mutation."""
-        k_tour, k_blend, k_cross, k_mut, k_step = jax.random.split(key, 5)
-        children = size - elite_count
-        entrants = jax.random.randint(k_tour, (2, children, tournament_size), 0, size)
-        winners = jnp.min(entrants, axis=-1)  # sorted best first: the lowest index wins
-        first, second = z[winners[0]], z[winners[1]]
-        beta = jax.random.uniform(k_blend, first.shape, minval=-BLEND_EXTENT,
-                                  maxval=1 + BLEND_EXTENT, dtype=dtype)
-        crossed = jax.random.uniform(k_cross, (children, 1), dtype=dtype) < config.crossover_rate
-        child = jnp.where(crossed, first + beta * (second - first), first)
-        mutate = jax.random.uniform(k_mut, child.shape, dtype=dtype) < config.mutation_rate
-        step = config.mutation_scale * jax.random.normal(k_step, child.shape, dtype=dtype)
-        return jnp.clip(jnp.where(mutate, child + step, child), 0.0, 1.0)
+    def breed(bits, z):
+        """Children of one island (sorted best first) from its draws ``bits`` (children,
+        `draws` of 16 bits): tournament, BLX blend, mutation."""
+        uniform = (bits.astype(dtype) + 0.5) / 65536  # in (0, 1), never either end
+        # The tournament's entrants: the high bits of a multiply, exact for a power-of-two
+        # island size and biased by at most size / 65536 otherwise.
+        entrants = (bits[:, :2 * tournament_size].astype(jnp.uint32) * size) >> 16
+        winners = jnp.min(entrants.reshape(children, 2, tournament_size), axis=-1)
+        first, second = z[winners[:, 0]], z[winners[:, 1]]
+        beta, crossed, mutate, step = jnp.split(uniform[:, 2 * tournament_size:],
+                                                [dimensions, dimensions + 1,
+                                                 2 * dimensions + 1], axis=-1)
+        beta = -BLEND_EXTENT + (1 + 2 * BLEND_EXTENT) * beta
+        child = jnp.where(crossed < config.crossover_rate, first + beta * (second - first),
+                          first)
+        step = config.mutation_scale * jnp.sqrt(2.0).astype(dtype) * jax.scipy.special.erfinv(
+            2 * step - 1)
+        return jnp.clip(jnp.where(mutate < config.mutation_rate, child + step, child), 0.0,
+                        1.0)
 
     # The first population is scored through the generations' own scoring call, in
     # `warm` rounds of `children` members per island (the last window ends at the
@@ -168,24 +173,28 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
     # model, its linear solve included, compiled once instead of twice makes the search
     # compile about a third faster (BENCHMARKS.md, startup-fit).
     children = size - elite_count
+    draws = 2 * tournament_size + 3 * dimensions + 1  # per child: see `breed`
     windows = jnp.asarray([min(k * children, size - children)
                            for k in range(-(-size // children))])
     warm = windows.shape[0]
     init_key, loop_key = jax.random.split(key)
     founders = jax.random.uniform(init_key, (islands, size, dimensions), dtype=dtype)
+    # Every generation's draws in one call before the loop: a PRNG call inside the loop
+    # costs far more than its bits (BENCHMARKS.md, section cube).
+    bits = jax.random.bits(loop_key, (max_generations, islands, children, draws), jnp.uint16)
 
     def condition(state):
-        round_, _, _, _, _, stalled, _ = state
+        round_, _, _, _, stalled, _ = state
         return (round_ < warm) | ((round_ - warm < max_generations)
                                   & jnp.any(stalled < patience))
 
-    def candidates(round_, key, z):
+    def candidates(round_, z):
         """A window of the first population, or the next generation's children."""
         def window():
             return jax.lax.dynamic_slice_in_dim(founders, windows[round_], children, axis=1)
 
         def bred():
-            return jax.vmap(breed)(jax.random.split(key, islands), z)
+            return jax.vmap(breed)(bits[jnp.maximum(round_ - warm, 0)], z)
 
         return jax.lax.cond(round_ < warm, window, bred)
 
@@ -201,10 +210,9 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
                     jnp.concatenate([errors[:, :elite_count], scored_errors], axis=1))
 
     def step(state):
-        round_, key, z, errors, history, stalled, best = state
+        round_, z, errors, history, stalled, best = state
         breeding = round_ >= warm
-        next_key, sub = jax.random.split(key)
-        scored, scored_errors = score(candidates(round_, sub, z))
+        scored, scored_errors = score(candidates(round_, z))
         z, errors = jax.lax.cond(breeding,
                                  lambda: settle_children(z, errors, scored, scored_errors),
                                  lambda: settle_first(round_, z, errors, scored, scored_errors))
@@ -214,13 +222,12 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
         history = jnp.where(breeding, history.at[generation].set(errors[:, 0].min()), history)
         best = jnp.where(breeding, jnp.minimum(best, errors[:, 0]),
                          jnp.where(round_ == warm - 1, errors[:, 0], best))
-        key = jax.lax.cond(breeding, lambda: next_key, lambda: key)  # kept while warming
-        return round_ + 1, key, z, errors, history, stalled, best
+        return round_ + 1, z, errors, history, stalled, best
 
-    state = (jnp.asarray(0), loop_key, founders, jnp.full((islands, size), jnp.inf, dtype),
+    state = (jnp.asarray(0), founders, jnp.full((islands, size), jnp.inf, dtype),
              jnp.full(max_generations, jnp.nan, dtype), jnp.zeros(islands, dtype=int),
              jnp.full(islands, jnp.inf, dtype))
-    rounds, _, z, errors, history, _, _ = jax.lax.while_loop(condition, step, state)
+    rounds, z, errors, history, _, _ = jax.lax.while_loop(condition, step, state)
     generations = rounds - warm
     order = jnp.argsort(errors[:, 0])  # islands best first: member 0 is the best of all
     z, errors = z[order], errors[order]
