@@ -212,17 +212,8 @@ def test_dask_fits_the_cube_chunk_by_chunk(cube, reference, dask_scheduler, tmp_
     assert code == 1 and f"{COUNT - 1} of {COUNT} fitted" in capsys.readouterr().err
     final, whole = read(out), read(reference[0])
     assert set(final) == set(whole)
-    for name in final:
-        if np.issubdtype(np.asarray(final[name]).dtype, np.floating):
-            # The workers run XLA with another setting than the local run, which turns
-            # multi-threaded Eigen off (`use_every_core`); that moves the last bits (2.5e-11
-            # in one parameter of one sample, seen on an AMD EPYC machine). E to 1e-9, as a
-            # batch promises against single fits; a parameter along a flat direction moves
-            # more than E, so to 1e-6.
-            np.testing.assert_allclose(final[name], whole[name], atol=0, err_msg=name,
-                                       rtol=1e-9 if name == "error" else 1e-6)
-        else:
-            np.testing.assert_array_equal(final[name], whole[name], err_msg=name)
+    for name in final:  # the workers run XLA as the local run does (`single_threaded`)
+        np.testing.assert_array_equal(final[name], whole[name], err_msg=name)
 
 
 def test_a_block_with_uncertainty_keeps_its_fits_and_adds_their_std(cube):

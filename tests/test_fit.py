@@ -138,6 +138,39 @@ def test_repeated_starts_are_skipped_and_change_nothing(clean_white_paint):
     assert few.evaluations == 6 * np.sum(few.steps[:2] + 2)
 
 
+def test_the_residuals_jvp_is_plain_autodiff_in_the_parameters_and_the_data(white_paint):
+    """LM's residuals form their Jacobian in a custom JVP rule (`_free_residuals`): its
+    tangents equal those of the plain function, in the free coordinates and, where someone
+    differentiates in them, in the measured values (a straightforward derivative)."""
+    from brdfjax.fitting.objective import residuals
+    from brdfjax.fitting.polish import _free_residuals
+
+    prob, bounds = problem(white_paint), default_bounds()
+    u = to_free(np.asarray(PAPER_SAMPLES["white_paint"]), bounds)
+    du = np.linspace(-1.0, 1.0, 5)
+    dt = np.cos(np.arange(prob.target.size))
+
+    def custom(u, target):
+        return _free_residuals(u, (prob._replace(target=target), bounds))
+
+    def plain(u, target):
+        return residuals(from_free(u, bounds), prob._replace(target=target))
+
+    for tangents in ((du, np.zeros_like(dt)), (du, dt)):
+        value, tangent = jax.jvp(custom, (u, prob.target), tangents)
+        expected, expected_tangent = jax.jvp(plain, (u, prob.target), tangents)
+        np.testing.assert_allclose(value, expected, rtol=1e-14, atol=1e-16)
+        np.testing.assert_allclose(tangent, expected_tangent, rtol=1e-12, atol=1e-14)
+    # in u alone, as LM linearises it: the Jacobian against central differences
+    jacobian = jax.jacfwd(lambda u: _free_residuals(u, (prob, bounds)))(u)
+    step = 1e-6
+    for k in range(5):
+        e = np.eye(5)[k] * step
+        difference = (plain(u + e, prob.target) - plain(u - e, prob.target)) / (2 * step)
+        np.testing.assert_allclose(jacobian[:, k], difference, rtol=1e-5,
+                                   atol=1e-8 * np.abs(difference).max())
+
+
 def test_fresnel_free_start(clean_white_paint):
     prob, bounds = problem(clean_white_paint), default_bounds()
     free = from_unit(FIVE.extra_starts(jax.numpy.full((1, 5), 0.7), bounds)[0], bounds)

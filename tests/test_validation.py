@@ -181,6 +181,9 @@ def test_fit_predict_writes_the_corrected_prediction_beside_the_model(tmp_path, 
         rows[kind] = np.array([[float(v) for v in line.split(",")] for line in lines])
         record = json.loads((tmp_path / f"{kind}.json").read_text())["prediction"]
         assert record["discrepancy"] == kind and record["points"] == len(ggx_data)
+        # the corrected cv_error under the name `brdfjax models --json` gives it
+        calibration = json.dumps(record)
+        assert ('"cv_error_with_discrepancy"' in calibration) == (kind == "gp")
         printed = capsys.readouterr().out
         assert f"({'the model times its learned correction' if kind == 'gp' else 'the model alone'}"\
                in printed

@@ -654,12 +654,21 @@ def use_every_core() -> list:
     given in ``XLA_FLAGS`` (``--xla_force_host_platform_device_count``) is kept, and so are
     the devices of a JAX that has already started.
     """
-    flags = os.environ.get("XLA_FLAGS", "")
-    if "xla_cpu_multi_thread_eigen" not in flags:
-        os.environ["XLA_FLAGS"] = f"{flags} --xla_cpu_multi_thread_eigen=false".strip()
-    if "xla_force_host_platform_device_count" not in flags:
+    single_threaded()
+    if "xla_force_host_platform_device_count" not in os.environ["XLA_FLAGS"]:
         try:
             jax.config.update("jax_num_cpu_devices", len(os.sched_getaffinity(0)))
         except RuntimeError:  # JAX already running in this process: keep its devices
             pass
     return jax.devices()
+
+
+def single_threaded() -> None:
+    """XLA:CPU without Eigen's threads, as every batch runs (`use_every_core`; a setting
+    given in ``XLA_FLAGS`` is kept). A Dask worker's chunk (`brdfjax.fitting.cluster`) so
+    computes what the local batch computes: with Eigen's threads a matrix product's last
+    bits differ, and a fit that branches on them can end at another step count. Acts only
+    before JAX starts its backend (on a worker: before its first chunk)."""
+    flags = os.environ.get("XLA_FLAGS", "")
+    if "xla_cpu_multi_thread_eigen" not in flags:
+        os.environ["XLA_FLAGS"] = f"{flags} --xla_cpu_multi_thread_eigen=false".strip()

@@ -43,8 +43,9 @@ def fit_chunk(samples: list, options: dict) -> list[dict]:
         ``"std"`` entry of standard deviations by parameter name and the approximation's
         ``"uncertainty_status"``.
     """
-    from brdfjax.fitting.batch import fit_batch
+    from brdfjax.fitting.batch import fit_batch, single_threaded
 
+    single_threaded()  # on a worker, as the local batch runs
     uncertainty, bounds, options = _batch_options(options)
     results = fit_batch(samples, bounds=bounds, **options)
     summaries = [result.to_dict() for result in results]
@@ -60,9 +61,10 @@ def fit_cube_chunk(samples: list, options: dict) -> dict:
     from `brdfjax.fitting.batch.fit_batch`'s table, formed for the whole block at once."""
     import numpy as np
 
-    from brdfjax.fitting.batch import fit_batch
+    from brdfjax.fitting.batch import fit_batch, single_threaded
     from brdfjax.models import get
 
+    single_threaded()  # on a worker, as the local batch runs
     if options.get("uncertainty") is None:
         _, bounds, plain = _batch_options(options)
         table = fit_batch(samples, bounds=bounds, table=True, **plain)

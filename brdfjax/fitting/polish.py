@@ -40,6 +40,7 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+from jax.custom_derivatives import SymbolicZero
 
 from brdfjax.cache import stage
 from brdfjax.fitting.bounds import Bounds, from_free, from_unit, to_free
@@ -73,9 +74,49 @@ class PolishResult(NamedTuple):
     evaluations: jax.Array
 
 
+@jax.custom_jvp
 def _free_residuals(u, args):
+    """The residuals at free coordinates ``u`` (``args = (prob, bounds)``), whose
+    linearisation in ``u`` is the Jacobian alone.
+
+    optimistix linearises the residuals at every LM step (``jax.linearize``) and carries the
+    linearisation in its loop state; a plain function's linearisation holds every
+    intermediate array of the model, which XLA copies at each step's accept-or-reject
+    branch (about 60 copies for the five-parameter model). With the Jacobian formed in
+    this custom JVP rule (P products with the basis, as linearising did), the state holds
+    one N x P matrix.
+    """
     prob, bounds = args
     return residuals(from_free(u, bounds), prob)
+
+
+def _free_residuals_jvp(primals, tangents):
+    (u, args), (tangent, args_tangent) = primals, tangents
+    basis = jnp.eye(u.shape[0], dtype=u.dtype)
+    value, jacobian = jax.vmap(lambda e: jax.jvp(lambda v: _free_residuals.fun(v, args),
+                                                 (u,), (e,)), out_axes=(None, 1))(basis)
+    out = jacobian @ (jnp.zeros_like(u) if _is_zero(tangent) else tangent)
+    leaves, structure = jax.tree.flatten(args)
+    moved = jax.tree.leaves(args_tangent, is_leaf=_is_zero)
+    moving = [k for k, t in enumerate(moved) if not _is_zero(t)]
+    if moving:  # differentiated in the data or the box too (LM never is): as usual
+
+        def of_moving(*values):
+            changed = list(leaves)
+            for k, v in zip(moving, values):
+                changed[k] = v
+            return _free_residuals.fun(u, structure.unflatten(changed))
+
+        out = out + jax.jvp(of_moving, [leaves[k] for k in moving],
+                            [moved[k] for k in moving])[1]
+    return value, out
+
+
+_free_residuals.defjvp(_free_residuals_jvp, symbolic_zeros=True)
+
+
+def _is_zero(tangent) -> bool:
+    return isinstance(tangent, SymbolicZero)
 
 
 def _levenberg_marquardt(starts, skipped, prob, bounds, max_steps, scaled=True,

@@ -126,7 +126,7 @@ class Calibration:
                   "calibrated_incidences_deg": list(self.reach)}
         if self.discrepancy is not None:
             record["process"] = self.discrepancy.to_dict()
-            record["cv_error_corrected"] = self.corrected_cv_error
+            record["cv_error_with_discrepancy"] = self.corrected_cv_error
         return record
 
 
