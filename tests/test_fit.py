@@ -138,6 +138,55 @@ def test_repeated_starts_are_skipped_and_change_nothing(clean_white_paint):
     assert few.evaluations == 6 * np.sum(few.steps[:2] + 2)
 
 
+def _children(z, elite, crossover_rate, mutation_rate, rounds=4000, seed=0):
+    """`breed` of island ``z`` on ``rounds`` independent uniform draws: (rounds, children, P)."""
+    from brdfjax.fitting.evolve import EvolveConfig, breed, draw_count
+
+    tournament = 3
+    config = EvolveConfig(mutation_rate=mutation_rate, mutation_scale=0.05,
+                          crossover_rate=crossover_rate)
+    bits = np.random.default_rng(seed).integers(
+        0, 2**16, (rounds, len(z) - elite, draw_count(tournament, z.shape[1])), np.uint16)
+    one = jax.jit(jax.vmap(breed, in_axes=(0, None, None, None, None)), static_argnums=(2, 3))
+    return np.asarray(one(bits, jax.numpy.asarray(z, np.float32), elite, tournament, config))
+
+
+def test_the_genetic_search_breeds_as_its_draws_say():
+    """`breed` from uniform 16-bit draws, against closed forms, on an island of 12 members
+    (not a power of two): tournament winners (the best of 3 uniform entrants), the
+    mutation's rate, mean and spread, and the BLX-0.5 blend's share and uniform spread."""
+    from scipy import stats
+
+    members, elite = 12, 4
+    # Without crossover or mutation a child is its first parent: member k holds k / 16.
+    ranks = _children(np.arange(members)[:, None].repeat(5, 1) / 16, elite, 0.0, 0.0)
+    winners = np.round(ranks[..., 0] * 16).astype(int).ravel()
+    k = np.arange(members)
+    expected = ((members - k) ** 3 - (members - k - 1) ** 3) / members**3
+    counts = np.bincount(winners, minlength=members)
+    assert stats.chisquare(counts, expected * counts.sum()).pvalue > 1e-4
+    # Mutation alone, on equal members: a gene moves with the rate, by N(0, 0.05).
+    moved = _children(np.full((members, 5), 0.5), elite, 0.0, 0.2, seed=1) - 0.5
+    share = np.mean(moved != 0)
+    assert abs(share - 0.2) < 5 * np.sqrt(0.2 * 0.8 / moved.size)
+    one_gene = np.mean(np.sum(moved != 0, axis=-1) == 1)  # each gene on its own draw
+    assert abs(one_gene - 5 * 0.2 * 0.8**4) < 5 * np.sqrt(0.41 * 0.59 / moved[..., 0].size)
+    steps = moved[moved != 0]
+    assert abs(steps.mean()) < 5 * 0.05 / np.sqrt(steps.size)
+    assert steps.std() == pytest.approx(0.05, rel=0.02)
+    # The blend: members alternate 0.25 / 0.75; parents that differ give
+    # first + beta (second - first) with beta ~ U(-0.5, 1.5): a child uniform on (0, 1).
+    z = np.where(k % 2 == 0, 0.25, 0.75)[:, None].repeat(5, 1)
+    blended = _children(z, elite, 0.9, 0.0, seed=2)
+    genes = np.sum((blended != 0.25) & (blended != 0.75), axis=-1)
+    assert set(np.unique(genes)) == {0, 5}  # a child is crossed whole, or not at all
+    blended = blended.ravel()
+    mixed = blended[(blended != 0.25) & (blended != 0.75)]
+    even = expected[::2].sum()
+    assert abs(mixed.size / blended.size - 0.9 * 2 * even * (1 - even)) < 0.01
+    assert stats.kstest(mixed, "uniform").pvalue > 1e-4
+
+
 def test_the_residuals_jvp_is_plain_autodiff_in_the_parameters_and_the_data(white_paint):
     """LM's residuals form their Jacobian in a custom JVP rule (`_free_residuals`): its
     tangents equal those of the plain function, in the free coordinates and, where someone
@@ -161,6 +210,17 @@ def test_the_residuals_jvp_is_plain_autodiff_in_the_parameters_and_the_data(whit
         expected, expected_tangent = jax.jvp(plain, (u, prob.target), tangents)
         np.testing.assert_allclose(value, expected, rtol=1e-14, atol=1e-16)
         np.testing.assert_allclose(tangent, expected_tangent, rtol=1e-12, atol=1e-14)
+    # in the data alone (the parameters' tangent a symbolic zero), and linearised in u and
+    # transposed, as LM uses it
+    _, tangent = jax.jvp(lambda t: custom(u, t), (prob.target,), (dt,))
+    _, expected_tangent = jax.jvp(lambda t: plain(u, t), (prob.target,), (dt,))
+    np.testing.assert_allclose(tangent, expected_tangent, rtol=1e-12, atol=1e-14)
+    _, linear = jax.linearize(lambda u: custom(u, prob.target), u)
+    _, expected_linear = jax.linearize(lambda u: plain(u, prob.target), u)
+    np.testing.assert_allclose(linear(du), expected_linear(du), rtol=1e-12, atol=1e-14)
+    (back,) = jax.linear_transpose(linear, u)(dt)
+    (expected_back,) = jax.linear_transpose(expected_linear, u)(dt)
+    np.testing.assert_allclose(back, expected_back, rtol=1e-12, atol=1e-14)
     # in u alone, as LM linearises it: the Jacobian against central differences
     jacobian = jax.jacfwd(lambda u: _free_residuals(u, (prob, bounds)))(u)
     step = 1e-6

@@ -10,10 +10,11 @@ brdfjax installed but not the data files: the client reads them and ships the ar
 local run compute the same thing.
 
 To use a real cluster, start a scheduler on one machine and workers on the others (each
-with brdfjax installed, one thread per worker process: JAX uses the cores itself)::
+with brdfjax installed, one worker process per core, one thread each: a worker's JAX runs
+single-threaded, as a local batch's devices do, `brdfjax.fitting.batch.single_threaded`)::
 
     dask-scheduler                                  # prints tcp://HOST:8786
-    dask-worker tcp://HOST:8786 --nworkers 4 --nthreads 1
+    dask-worker tcp://HOST:8786 --nworkers 4 --nthreads 1   # on a 4-core machine
     brdfjax batch data/*.xls --out results.csv --scheduler tcp://HOST:8786
 
 Dask is imported only here, and only when a cluster is used.

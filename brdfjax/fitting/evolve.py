@@ -16,13 +16,14 @@ three (to one for GGX). Each generation:
    (BLX-0.5 crossover), then each gene mutates with probability ``mutation_rate`` by a
    normal step of ``mutation_scale``, and is clipped to the box.
 
-Every draw of every generation comes from one call of JAX's (threefry) generator before the
-loop, 16-bit words read as uniforms ``(k + 1/2) / 2^16`` (the normal steps through
-``erfinv``) and as tournament entrants by multiply-shift: inside the loop on XLA:CPU each
-generator call cost more than all its bits, and drawn so the search of a 64-point sample
-runs in two thirds of the time. Threefry's draws are the same under ``vmap``, so the
-accelerator's lanes draw what the single fit draws (XLA's ``rbg`` generator was faster
-still, but its draws change under ``vmap``).
+Every draw of every generation comes from one call of JAX's generator before the loop,
+16-bit words that `breed` reads as uniforms and tournament entrants: inside the loop on
+XLA:CPU each generator call cost more than all its bits, and drawn so the search of a
+64-point sample runs in two thirds of the time (BENCHMARKS.md, section cube). Their memory,
+``max_generations`` x the children of a generation x `draw_count` x 2 bytes, is 165 kB
+per search with the default sizes. With JAX's default (threefry) keys the draws are the same under ``vmap``,
+so the accelerator's lanes draw what the single fit draws; an ``rbg`` key (faster still on
+a CPU) would not keep that.
 
 The islands evolve side by side in one loop (``lax.while_loop``), their members scored
 together; it stops after ``max_generations`` or when no island's best error has improved
@@ -155,40 +156,20 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
         return (jnp.take_along_axis(z, order[..., None], axis=1),
                 jnp.take_along_axis(errors, order, axis=-1))
 
-    def breed(bits, z):
-        """Children of one island (sorted best first) from its draws ``bits`` (children,
-        `draws` of 16 bits): tournament, BLX blend, mutation."""
-        uniform = (bits.astype(dtype) + 0.5) / 65536  # in (0, 1), never either end
-        # The tournament's entrants: the high bits of a multiply, exact for a power-of-two
-        # island size and biased by at most size / 65536 otherwise.
-        entrants = (bits[:, :2 * tournament_size].astype(jnp.uint32) * size) >> 16
-        winners = jnp.min(entrants.reshape(children, 2, tournament_size), axis=-1)
-        first, second = z[winners[:, 0]], z[winners[:, 1]]
-        beta, crossed, mutate, step = jnp.split(uniform[:, 2 * tournament_size:],
-                                                [dimensions, dimensions + 1,
-                                                 2 * dimensions + 1], axis=-1)
-        beta = -BLEND_EXTENT + (1 + 2 * BLEND_EXTENT) * beta
-        child = jnp.where(crossed < config.crossover_rate, first + beta * (second - first),
-                          first)
-        step = config.mutation_scale * jnp.sqrt(2.0).astype(dtype) * jax.scipy.special.erfinv(
-            2 * step - 1)
-        return jnp.clip(jnp.where(mutate < config.mutation_rate, child + step, child), 0.0,
-                        1.0)
-
     # The first population is scored through the generations' own scoring call, in
     # `warm` rounds of `children` members per island (the last window ends at the
     # island's end, overlapping the one before): XLA inlines every call site, and the
     # model, its linear solve included, compiled once instead of twice makes the search
     # compile about a third faster (BENCHMARKS.md, startup-fit).
     children = size - elite_count
-    draws = 2 * tournament_size + 3 * dimensions + 1  # per child: see `breed`
+    draws = draw_count(tournament_size, dimensions)
     windows = jnp.asarray([min(k * children, size - children)
                            for k in range(-(-size // children))])
     warm = windows.shape[0]
     init_key, loop_key = jax.random.split(key)
     founders = jax.random.uniform(init_key, (islands, size, dimensions), dtype=dtype)
-    # Every generation's draws in one call before the loop: a PRNG call inside the loop
-    # costs far more than its bits (BENCHMARKS.md, section cube).
+    # Every generation's draws in one call before the loop (module docstring); with the
+    # default sizes 165 kB per search.
     bits = jax.random.bits(loop_key, (max_generations, islands, children, draws), jnp.uint16)
 
     def condition(state):
@@ -202,7 +183,8 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
             return jax.lax.dynamic_slice_in_dim(founders, windows[round_], children, axis=1)
 
         def bred():
-            return jax.vmap(breed)(bits[jnp.maximum(round_ - warm, 0)], z)
+            return jax.vmap(breed, in_axes=(0, 0, None, None, None))(
+                bits[jnp.maximum(round_ - warm, 0)], z, elite_count, tournament_size, config)
 
         return jax.lax.cond(round_ < warm, window, bred)
 
@@ -242,6 +224,46 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
     return EvolveResult(population=z.reshape(-1, dimensions).astype(out),
                         errors=errors.reshape(-1).astype(out), history=history.astype(out),
                         generations=generations)
+
+
+def draw_count(tournament_size: int, dimensions: int) -> int:
+    """The 16-bit draws `breed` takes per child: two tournaments, then a blend factor per
+    gene, a crossover draw, a mutation draw per gene and a mutation step per gene."""
+    return 2 * tournament_size + 3 * dimensions + 1
+
+
+def breed(bits, z, elite_count: int, tournament_size: int, config: EvolveConfig):
+    """The children of one island from its draws: tournament, BLX blend, mutation.
+
+    Args:
+        bits: uint16 draws, (children, `draw_count`), children = members - ``elite_count``.
+        z: the island's members, sorted best first, (members, P), in the search's dtype.
+        elite_count, tournament_size, config: as `evolve` takes them.
+
+    Each draw k is read as the uniform ``(k + 1/2) / 2^16`` (in (0, 1), never either end;
+    rates are so resolved to 2^-16), computed in at least float32 so that a half-precision
+    search never rounds it to 1. A tournament entrant is the high half of ``k x members``
+    (multiply-shift: uniform over the members for a power-of-two island, within 2^-16 of
+    uniform otherwise); the mutation step is ``mutation_scale sqrt(2) erfinv(2u - 1)``, a
+    normal step cut at 4.4 sigma.
+
+    Returns:
+        The children, clipped to the unit cube, (children, P).
+    """
+    size, dimensions = z.shape
+    children = size - elite_count
+    wide = jnp.promote_types(z.dtype, jnp.float32)
+    uniform = (bits[:, 2 * tournament_size:].astype(wide) + 0.5) / 65536
+    entrants = (bits[:, :2 * tournament_size].astype(jnp.uint32) * size) >> 16
+    winners = jnp.min(entrants.reshape(children, 2, tournament_size), axis=-1)
+    first, second = z[winners[:, 0]], z[winners[:, 1]]
+    beta, crossed, mutate, step = jnp.split(uniform, [dimensions, dimensions + 1,
+                                                      2 * dimensions + 1], axis=-1)
+    beta = (-BLEND_EXTENT + (1 + 2 * BLEND_EXTENT) * beta).astype(z.dtype)
+    child = jnp.where(crossed < config.crossover_rate, first + beta * (second - first), first)
+    step = (config.mutation_scale * jnp.sqrt(2.0) * jax.scipy.special.erfinv(2 * step - 1)
+            ).astype(z.dtype)
+    return jnp.clip(jnp.where(mutate < config.mutation_rate, child + step, child), 0.0, 1.0)
 
 
 def scan(prob: Problem, bounds: Bounds, points: int, islands: int, max_generations: int,

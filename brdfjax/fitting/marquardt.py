@@ -52,10 +52,13 @@ class MarquardtDescent(optx.AbstractDescent):
     2-norm; any per-column measure gives the same invariance, and this one can neither
     underflow nor overflow when squared, since the scaled columns are at most 1).
     ``lambda`` is the reciprocal of the trust region's step size, as in
-    `optimistix.DampedNewtonDescent`. The Jacobian is formed once per accepted point, by
-    P Jacobian-vector products under ``vmap`` (lineax's ``as_matrix`` of the same operator
-    made each LM step of the five-parameter model on 716 points a fifth slower); each
-    trial step is then a P x P Cholesky solve.
+    `optimistix.DampedNewtonDescent`. The Jacobian is read once per accepted point, by P
+    products of the linearisation with the basis under ``vmap`` (lineax's ``as_matrix``
+    of the same operator made each LM step of the five-parameter model on 716 points a
+    fifth slower); each trial step is then a P x P Cholesky solve. The residuals of
+    `brdfjax.fitting.polish` linearise to their Jacobian itself (a custom JVP rule that
+    forms it at every linearised point, rejected steps' included), so those products
+    only read it back.
     """
 
     def init(self, y, f_info_struct) -> _Linearised:

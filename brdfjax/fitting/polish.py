@@ -92,10 +92,14 @@ def _free_residuals(u, args):
 
 def _free_residuals_jvp(primals, tangents):
     (u, args), (tangent, args_tangent) = primals, tangents
-    basis = jnp.eye(u.shape[0], dtype=u.dtype)
-    value, jacobian = jax.vmap(lambda e: jax.jvp(lambda v: _free_residuals.fun(v, args),
-                                                 (u,), (e,)), out_axes=(None, 1))(basis)
-    out = jacobian @ (jnp.zeros_like(u) if _is_zero(tangent) else tangent)
+    if _is_zero(tangent):  # differentiated in the data or the box alone
+        value = _free_residuals.fun(u, args)
+        out = jnp.zeros_like(value)
+    else:
+        basis = jnp.eye(u.shape[0], dtype=u.dtype)
+        value, jacobian = jax.vmap(lambda e: jax.jvp(lambda v: _free_residuals.fun(v, args),
+                                                     (u,), (e,)), out_axes=(None, 1))(basis)
+        out = jacobian @ tangent
     leaves, structure = jax.tree.flatten(args)
     moved = jax.tree.leaves(args_tangent, is_leaf=_is_zero)
     moving = [k for k, t in enumerate(moved) if not _is_zero(t)]
