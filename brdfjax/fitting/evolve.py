@@ -21,9 +21,9 @@ Every draw of every generation comes from one call of JAX's generator before the
 XLA:CPU each generator call cost more than all its bits, and drawn so the search of a
 64-point sample runs in two thirds of the time (BENCHMARKS.md, section cube). Their memory,
 ``max_generations`` x the children of a generation x `draw_count` x 2 bytes, is 165 kB
-per search with the default sizes. With JAX's default (threefry) keys the draws are the same under ``vmap``,
-so the accelerator's lanes draw what the single fit draws; an ``rbg`` key (faster still on
-a CPU) would not keep that.
+per search with the default sizes. With JAX's default (threefry) keys the draws are the
+same under ``vmap``, so the accelerator's lanes draw what the single fit draws; an ``rbg``
+key (faster still on a CPU) would not keep that.
 
 The islands evolve side by side in one loop (``lax.while_loop``), their members scored
 together; it stops after ``max_generations`` or when no island's best error has improved
