@@ -147,8 +147,8 @@ def _children(z, elite, crossover_rate, mutation_rate, rounds=4000, seed=0):
                           crossover_rate=crossover_rate)
     bits = np.random.default_rng(seed).integers(
         0, 2**16, (rounds, len(z) - elite, draw_count(tournament, z.shape[1])), np.uint16)
-    one = jax.jit(jax.vmap(breed, in_axes=(0, None, None, None, None)), static_argnums=(2, 3))
-    return np.asarray(one(bits, jax.numpy.asarray(z, np.float32), elite, tournament, config))
+    one = jax.jit(jax.vmap(breed, in_axes=(0, None, None, None)), static_argnums=2)
+    return np.asarray(one(bits, jax.numpy.asarray(z, np.float32), tournament, config))
 
 
 def test_the_genetic_search_breeds_as_its_draws_say():

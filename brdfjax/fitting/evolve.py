@@ -183,8 +183,8 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
             return jax.lax.dynamic_slice_in_dim(founders, windows[round_], children, axis=1)
 
         def bred():
-            return jax.vmap(breed, in_axes=(0, 0, None, None, None))(
-                bits[jnp.maximum(round_ - warm, 0)], z, elite_count, tournament_size, config)
+            return jax.vmap(breed, in_axes=(0, 0, None, None))(
+                bits[jnp.maximum(round_ - warm, 0)], z, tournament_size, config)
 
         return jax.lax.cond(round_ < warm, window, bred)
 
@@ -232,13 +232,13 @@ def draw_count(tournament_size: int, dimensions: int) -> int:
     return 2 * tournament_size + 3 * dimensions + 1
 
 
-def breed(bits, z, elite_count: int, tournament_size: int, config: EvolveConfig):
+def breed(bits, z, tournament_size: int, config: EvolveConfig):
     """The children of one island from its draws: tournament, BLX blend, mutation.
 
     Args:
-        bits: uint16 draws, (children, `draw_count`), children = members - ``elite_count``.
+        bits: uint16 draws, (children, `draw_count`): one row per child.
         z: the island's members, sorted best first, (members, P), in the search's dtype.
-        elite_count, tournament_size, config: as `evolve` takes them.
+        tournament_size, config: as `evolve` takes them.
 
     Each draw k is read as the uniform ``(k + 1/2) / 2^16`` (in (0, 1), never either end;
     rates are so resolved to 2^-16), computed in at least float32 so that a half-precision
@@ -251,7 +251,7 @@ def breed(bits, z, elite_count: int, tournament_size: int, config: EvolveConfig)
         The children, clipped to the unit cube, (children, P).
     """
     size, dimensions = z.shape
-    children = size - elite_count
+    children = bits.shape[0]
     wide = jnp.promote_types(z.dtype, jnp.float32)
     uniform = (bits[:, 2 * tournament_size:].astype(wide) + 0.5) / 65536
     entrants = (bits[:, :2 * tournament_size].astype(jnp.uint32) * size) >> 16
