@@ -12,9 +12,9 @@ steps).
 Marquardt's original damping scales ``lambda`` by each column's own size,
 ``(J^T J + lambda D^2) step = -J^T r`` with ``D`` diagonal, which makes the step
 independent of how each coordinate is scaled: the saturating column takes the
-Gauss-Newton step it asks for, and reaches the bound in a few steps (that GGX fit: 60,
-the first 40 of them the unscaled screening of `brdfjax.fitting.polish`, which says why the
-screening stays unscaled). Optimistix composes a least-squares solver from a descent and
+Gauss-Newton step it asks for, and reaches the bound in a few steps (that GGX fit: 42-52
+steps for each surviving start, the first 20 of them the unscaled screening of
+`brdfjax.fitting.polish`, which says why the screening stays unscaled). Optimistix composes a least-squares solver from a descent and
 a search; this module supplies the descent, `MarquardtDescent`, and uses optimistix's
 `ClassicalTrustRegion` as `optimistix.LevenbergMarquardt` does. (MINPACK's variant keeps
 the largest ``D`` seen so far, which brings the crawl back.)
