@@ -17,7 +17,7 @@ from brdfjax.fitting.bounds import (
     to_free,
     to_unit,
 )
-from brdfjax.fitting.evolve import evolve
+from brdfjax.fitting.evolve import ascending, evolve
 from brdfjax.fitting.fit import fit
 from brdfjax.fitting.objective import _geometry, problem, projected, solve_linear
 from brdfjax.fitting.polish import polish, polish_population, population_starts
@@ -149,6 +149,18 @@ def _children(z, elite, crossover_rate, mutation_rate, rounds=4000, seed=0):
         0, 2**16, (rounds, len(z) - elite, draw_count(tournament, z.shape[1])), np.uint16)
     one = jax.jit(jax.vmap(breed, in_axes=(0, None, None, None)), static_argnums=2)
     return np.asarray(one(bits, jax.numpy.asarray(z, np.float32), tournament, config))
+
+
+_ascending = jax.jit(ascending)
+
+
+@settings(deadline=None, max_examples=60)
+@given(st.lists(st.lists(st.sampled_from([0.0, 1e-7, 0.5, 0.5, 2.0, -3.0, np.inf]),
+                         min_size=16, max_size=16), min_size=1, max_size=8))
+def test_the_search_orders_its_islands_as_a_stable_sort(rows):
+    """`ascending` against NumPy's stable argsort, ties and +inf (a NaN score) included."""
+    values = np.asarray(rows, dtype=np.float32)
+    np.testing.assert_array_equal(_ascending(values), np.argsort(values, axis=-1, kind="stable"))
 
 
 def test_the_genetic_search_breeds_as_its_draws_say():

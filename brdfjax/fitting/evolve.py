@@ -152,7 +152,7 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
         return scored.reshape(z.shape), errors.reshape(z.shape[:-1])
 
     def sort(z, errors):
-        order = jnp.argsort(errors, axis=-1)
+        order = ascending(errors)
         return (jnp.take_along_axis(z, order[..., None], axis=1),
                 jnp.take_along_axis(errors, order, axis=-1))
 
@@ -224,6 +224,25 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
     return EvolveResult(population=z.reshape(-1, dimensions).astype(out),
                         errors=errors.reshape(-1).astype(out), history=history.astype(out),
                         generations=generations)
+
+
+def ascending(values) -> jax.Array:
+    """The order that sorts ``values`` ascending along the last axis, ties kept in index
+    order: ``jnp.argsort``'s stable order, for values without NaN (the search scores NaN
+    as +inf).
+
+    Each value's place is the count of values before it, so that one comparison of every
+    pair replaces a sort: XLA:CPU sorts through a comparator call per comparison, and the
+    two sorts of a generation's 8 islands of 16 took 12 us each, longer than the rest of
+    its bookkeeping (`jax.profiler`).
+    """
+    count = values.shape[-1]
+    index = jnp.arange(count)
+    earlier = index[None, :] < index[:, None]
+    ahead = values[..., None, :] < values[..., :, None]
+    tied = values[..., None, :] == values[..., :, None]
+    place = jnp.sum(ahead | (tied & earlier), axis=-1)
+    return jnp.sum(jnp.where(place[..., None, :] == index[:, None], index, 0), axis=-1)
 
 
 def draw_count(tournament_size: int, dimensions: int) -> int:
