@@ -14,10 +14,11 @@ Marquardt's original damping scales ``lambda`` by each column's own size,
 independent of how each coordinate is scaled: the saturating column takes the
 Gauss-Newton step it asks for, and reaches the bound in a few steps (that GGX fit: 42-52
 steps for each surviving start, the first 20 of them the unscaled screening of
-`brdfjax.fitting.polish`, which says why the screening stays unscaled). Optimistix composes a least-squares solver from a descent and
-a search; this module supplies the descent, `MarquardtDescent`, and uses optimistix's
-`ClassicalTrustRegion` as `optimistix.LevenbergMarquardt` does. (MINPACK's variant keeps
-the largest ``D`` seen so far, which brings the crawl back.)
+`brdfjax.fitting.polish`, which says why the screening stays unscaled). Optimistix
+composes a least-squares solver from a descent and a search; this module supplies the
+descent, `MarquardtDescent`, and uses optimistix's `ClassicalTrustRegion` as
+`optimistix.LevenbergMarquardt` does. (MINPACK's variant keeps the largest ``D`` seen so
+far, which brings the crawl back.)
 
 A column that is exactly zero (a parameter that does not change the residuals) takes
 no step: its gradient is zero too. `brdfjax.fitting.bounds.from_free` clips ``u`` to
