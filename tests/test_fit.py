@@ -17,7 +17,7 @@ from brdfjax.fitting.bounds import (
     to_free,
     to_unit,
 )
-from brdfjax.fitting.evolve import ascending, evolve
+from brdfjax.fitting.evolve import COUNTED, ascending, evolve
 from brdfjax.fitting.fit import fit
 from brdfjax.fitting.objective import _geometry, problem, projected, solve_linear
 from brdfjax.fitting.polish import polish, polish_population, population_starts
@@ -158,9 +158,13 @@ _ascending = jax.jit(ascending)
 @given(st.lists(st.lists(st.sampled_from([0.0, 1e-7, 0.5, 0.5, 2.0, -3.0, np.inf]),
                          min_size=16, max_size=16), min_size=1, max_size=8))
 def test_the_search_orders_its_islands_as_a_stable_sort(rows):
-    """`ascending` against NumPy's stable argsort, ties and +inf (a NaN score) included."""
+    """`ascending` against NumPy's stable argsort, ties and +inf (a NaN score) included,
+    on islands it counts (16 members) and on one it sorts (more than `COUNTED`)."""
     values = np.asarray(rows, dtype=np.float32)
-    np.testing.assert_array_equal(_ascending(values), np.argsort(values, axis=-1, kind="stable"))
+    wide = np.tile(values, (1, COUNTED // 16 + 1))
+    for island in (values, wide):
+        np.testing.assert_array_equal(_ascending(island),
+                                      np.argsort(island, axis=-1, kind="stable"))
 
 
 def test_the_genetic_search_breeds_as_its_draws_say():

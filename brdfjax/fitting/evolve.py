@@ -47,6 +47,7 @@ from brdfjax.fitting.bounds import Bounds, from_unit, to_unit
 from brdfjax.fitting.objective import Problem, solve_linear
 
 BLEND_EXTENT = 0.5  # BLX-alpha with alpha = 0.5: children may land beyond either parent
+COUNTED = 64  # islands up to this size are ordered by counting (`ascending`)
 
 
 class EvolveConfig(NamedTuple):
@@ -234,9 +235,12 @@ def ascending(values) -> jax.Array:
     Each value's place is the count of values before it, so that one comparison of every
     pair replaces a sort: XLA:CPU sorts through a comparator call per comparison, and the
     two sorts of a generation's 8 islands of 16 took 12 us each, longer than the rest of
-    its bookkeeping (`jax.profiler`).
+    its bookkeeping (`jax.profiler`). The pairs grow as the square of the island, so an
+    island of more than `COUNTED` members is sorted after all.
     """
     count = values.shape[-1]
+    if count > COUNTED:
+        return jnp.argsort(values, axis=-1, stable=True)
     index = jnp.arange(count)
     earlier = index[None, :] < index[:, None]
     ahead = values[..., None, :] < values[..., :, None]
