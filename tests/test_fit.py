@@ -155,16 +155,17 @@ _ascending = jax.jit(ascending)
 
 
 @settings(deadline=None, max_examples=60)
-@given(st.lists(st.lists(st.sampled_from([0.0, 1e-7, 0.5, 0.5, 2.0, -3.0, np.inf]),
-                         min_size=16, max_size=16), min_size=1, max_size=8))
-def test_the_search_orders_its_islands_as_a_stable_sort(rows):
-    """`ascending` against NumPy's stable argsort, ties and +inf (a NaN score) included,
-    on islands it counts (16 members) and on one it sorts (more than `COUNTED`)."""
-    values = np.asarray(rows, dtype=np.float32)
-    wide = np.tile(values, (1, COUNTED // 16 + 1))
-    for island in (values, wide):
-        np.testing.assert_array_equal(_ascending(island),
-                                      np.argsort(island, axis=-1, kind="stable"))
+@given(st.sampled_from([12, 16, COUNTED, COUNTED + 1]), st.integers(1, 8), st.data())
+def test_the_search_orders_its_islands_as_a_stable_sort(members, islands, data):
+    """`ascending` against NumPy's stable argsort, ties, -0.0 and +-inf (+inf: a NaN score)
+    included, on islands it counts (up to `COUNTED` members) and on islands it sorts."""
+    pool = st.sampled_from([0.0, -0.0, 1e-7, 0.5, 2.0, -3.0, np.inf, -np.inf])
+    values = np.asarray(data.draw(st.lists(pool, min_size=members * islands,
+                                           max_size=members * islands)),
+                        dtype=np.float32).reshape(islands, members)
+    np.testing.assert_array_equal(_ascending(values), np.argsort(values, axis=-1, kind="stable"))
+    sorted_ = "sort" in str(jax.make_jaxpr(ascending)(values))
+    assert sorted_ == (members > COUNTED)
 
 
 def test_the_genetic_search_breeds_as_its_draws_say():
