@@ -43,9 +43,9 @@ distinct good members), but as one compiled call per chunk of samples:
      ``side_by_side``); a finished lane is masked (``vmap`` of a ``while_loop`` keeps its
      state) until the slowest is done. So that a few slow lanes do not hold all the others,
      LM's convergence round stops at `LANE_STEPS` steps (the longest start of a 64-point
-     cube sample took a median of 52 LM steps, 40 of screening included, 90 at the 90th
-     percentile, when the screening took up to 40: ``BENCHMARKS.md``, section
-     lanes-cpu), and the starts still running then continue in a second, small batch
+     cube sample took a median of 47 LM steps, up to 20 of screening included, 100 at the
+     90th percentile: ``BENCHMARKS.md``, section lanes-cpu), and the starts still
+     running then continue in a second, small batch
      of their own from where they stopped, for the rest of ``max_steps``
      (`_resume_slow`, on the first device: it is small). A start so
      resumed restarts LM's damping and reaches its minimum by a slightly different path.
