@@ -45,14 +45,14 @@ distinct good members), but as one compiled call per chunk of samples:
      LM's convergence round stops at `LANE_STEPS` steps (the longest start of a 64-point
      cube sample took a median of 47 LM steps, up to 20 of screening included, 100 at the
      90th percentile: ``BENCHMARKS.md``, section lanes-cpu), and the starts still
-     running then continue in a second, small batch
-     of their own from where they stopped, for the rest of ``max_steps``
-     (`_resume_slow`, on the first device: it is small). A start so
-     resumed restarts LM's damping and reaches its minimum by a slightly different path.
-     Converged fits ended at the ``map`` path's E to 1e-9 in the tests and to 1.4e-14 on
-     256 cube samples (``BENCHMARKS.md``, lanes-cpu), but not bit for bit: the vmapped
-     genetic search computes in another order, and a search that branches on the last
-     bits can end in another basin (once seen on another cube, 3.5e-4 in E).
+     running then continue in a second, small batch of their own from where they
+     stopped, for the rest of ``max_steps`` (`_resume_slow`, on the first device: it is
+     small). A start so resumed restarts LM's damping and reaches its minimum by a
+     slightly different path. Converged fits ended at the ``map`` path's E to 1e-9 in the
+     tests and to 7.8e-12 on 256 cube samples (``BENCHMARKS.md``, lanes-cpu), but not bit
+     for bit: the vmapped genetic search computes in another order, and a search that
+     branches on the last bits can end in another basin (once seen on another cube,
+     3.5e-4 in E).
 6. The sample axis is split over the local devices: each device gets a contiguous block
    of the chunk's samples, placed on it (``jax.device_put``) and fitted by the same
    compiled function, dispatched to all devices before waiting on any, so the devices run
