@@ -223,8 +223,8 @@ SPEED_NOTE = (
     "unconstrained coordinates, where it crawled towards such a bound for hundreds of steps "
     "(SciPy's trf treats the bound directly); since its convergence round uses Marquardt's "
     "scaling (`brdfjax/fitting/marquardt.py`) it gets there in tens (GGX's longest start: 664 "
-    "steps before, 73 after, 40 of them screening, when the screening took up to 40 steps; "
-    "51 of which 20 screening since it takes up to 20).")
+    "steps before, 73 after, 40 of them screening, while the screening took up to 40 steps; "
+    "51 since it takes up to 20, 20 of them screening).")
 
 
 def bench_speed(models, repeats):

@@ -28,8 +28,9 @@ The starts run one after another (``lax.map``), not side by side (``vmap``): a v
 ``while_loop`` runs every lane as long as the slowest, and under ``vmap`` each of
 optimistix's branches (``lax.cond``) becomes a select that computes both sides. On a CPU
 16 starts of 40 screening steps (the screening's length then) took 12-23 ms mapped
-against 40 ms vmapped (exploratory timing, 716 points). On an accelerator, where lanes run at once and each loop step is a kernel
-launch, ``side_by_side`` runs them under ``vmap`` (`brdfjax.fitting.batch`'s ``lanes``).
+against 40 ms vmapped (exploratory timing, 716 points). On an accelerator, where lanes
+run at once and each loop step is a kernel launch, ``side_by_side`` runs them under
+``vmap`` (`brdfjax.fitting.batch`'s ``lanes``).
 
 Each step solves its P x P normal equations by Cholesky: with at most 5 parameters they
 are tiny, it is the fastest here, and unlike lineax's default QR it was not seen to
