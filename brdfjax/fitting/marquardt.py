@@ -60,7 +60,14 @@ class MarquardtDescent(optx.AbstractDescent):
     `brdfjax.fitting.polish` linearise to their Jacobian itself (a custom JVP rule that
     forms it at every linearised point, rejected steps' included), so those products
     only read it back.
+
+    Attributes:
+        scaled: Marquardt's scaling; False (or a traced False) takes ``D = I``, the
+            steps of `optimistix.LevenbergMarquardt` (the screening round of
+            `brdfjax.fitting.polish`, which runs both rounds through one compiled loop).
     """
+
+    scaled: bool | jax.Array = True
 
     def init(self, y, f_info_struct) -> _Linearised:
         points, size = f_info_struct.residual.shape[0], y.shape[0]
@@ -72,7 +79,8 @@ class MarquardtDescent(optx.AbstractDescent):
         basis = jnp.eye(y.shape[0], dtype=y.dtype)
         jacobian = jax.vmap(f_info.jac.mv, out_axes=1)(basis)
         largest = jnp.max(jnp.abs(jacobian), axis=0)
-        scale = jnp.where(largest > 0, largest, 1.0)  # a zero column takes no step anyway
+        # a zero column takes no step anyway
+        scale = jnp.where(self.scaled & (largest > 0), largest, 1.0)
         return _Linearised(f_info.residual, jacobian / scale, scale)
 
     def step(self, step_size, state: _Linearised):
@@ -99,6 +107,7 @@ class ScaledLevenbergMarquardt(optx.AbstractGaussNewton):
     Attributes:
         rtol, atol: relative and absolute tolerances of optimistix's Cauchy termination
             (on the step and on the change of the loss).
+        cap: stop after this many steps (None: only at ``max_steps``).
     """
 
     rtol: float
@@ -107,3 +116,15 @@ class ScaledLevenbergMarquardt(optx.AbstractGaussNewton):
     descent: MarquardtDescent = MarquardtDescent()
     search: optx.ClassicalTrustRegion = optx.ClassicalTrustRegion()
     verbose: Callable = _silent
+    cap: int | jax.Array | None = None
+
+    def terminate(self, fn, y, args, options, state, tags):
+        """optimistix's test, and a stop at ``cap`` steps (reported as optimistix reports
+        its own ``max_steps``): a cap that may be traced, so that LM runs of different
+        lengths share one compiled loop."""
+        done, result = super().terminate(fn, y, args, options, state, tags)
+        if self.cap is None:
+            return done, result
+        capped = ~done & (state.num_steps >= self.cap)
+        return done | capped, optx.RESULTS.where(capped, optx.RESULTS.nonlinear_max_steps_reached,
+                                                 result)

@@ -3,12 +3,12 @@
 LM has no bounds, so it runs in the unconstrained coordinates ``u`` of `brdfjax.fitting.bounds`
 (``z = sigmoid(u)`` in the unit cube). It runs in two rounds:
 
-1. **Screening**: up to `SCREEN_STEPS` (20) steps of optimistix's LM, whose damping is the
-   same in every coordinate. Its first steps are short in all of them, so each start
-   settles into its own basin (the five-parameter model's Fresnel-free start stays in the
-   thin valley where the paper's cement has its best fit). Twenty steps rank the starts
-   as forty did: every model on every bundled real run ended at the same E (1e-6; 180
-   fits), and so did 256 cube samples, while 43 % of a cube sample's starts used to run
+1. **Screening**: up to `SCREEN_STEPS` (20) steps of LM whose damping is the same in every
+   coordinate (the steps of optimistix's own LM). Its first steps are short in all of them,
+   so each start settles into its own basin (the five-parameter model's Fresnel-free start
+   stays in the thin valley where the paper's cement has its best fit). Twenty steps rank
+   the starts as forty did: every model on every bundled real run ended at the same E (1e-6;
+   180 fits), and so did 256 cube samples, while 43 % of a cube sample's starts used to run
    all 40 (`BENCHMARKS.md`, section cube).
 2. **Convergence**: the best 3 continue with Marquardt's scaling of the damping
    (`brdfjax.fitting.marquardt`), under which a parameter whose best value lies on a bound gets
@@ -16,6 +16,13 @@ LM has no bounds, so it runs in the unconstrained coordinates ``u`` of `brdfjax.
    jumps too far along a coordinate whose Jacobian column is nearly zero: from the
    Fresnel-free start (b = 0, where a does not enter), a jumped to its upper bound and the
    cement fit ended in a worse basin.
+
+Both rounds run through one compiled LM loop (`brdfjax.fitting.marquardt`'s solver with its
+scaling and its step cap as data, ``lax.scan`` over the two rounds; the second round
+skips all but the kept starts). Two loops, one per round, made the polish twice as long
+to compile (the five-parameter model and ggx+backscatter on 120 points: 1.26-1.76 s
+against 0.62-0.92 s), and every fit ends where it ended (`BENCHMARKS.md`, section
+startup-fit-models-batch-auto).
 
 Several distinct starts run in one compiled call with ``throw=False``, each reporting
 its own status; the caller keeps the best. A start identical to an earlier one is
@@ -129,23 +136,23 @@ def _is_zero(tangent) -> bool:
     return isinstance(tangent, SymbolicZero)
 
 
-def _levenberg_marquardt(starts, skipped, prob, bounds, max_steps, scaled=True,
+def _levenberg_marquardt(starts, skipped, prob, bounds, max_steps, scaled=True, cap=None,
                          side_by_side=False):
     """LM from each row of ``starts`` (one after another, or ``side_by_side`` under ``vmap``),
     each with its own status.
 
     Rows where ``skipped`` is True are not run: they keep their start, E = inf and 0 steps
     (side by side they run and are then discarded: ``vmap`` makes the branch a select).
-    ``scaled``: Marquardt's scaling (`brdfjax.fitting.marquardt`), else optimistix's LM.
+    ``scaled``: Marquardt's scaling (`brdfjax.fitting.marquardt`), else the same damping in
+    every coordinate; ``cap``: a lower step limit than ``max_steps``, which may be traced.
     """
-    import lineax as lx  # imported only when traced: a cached stage runs without them
-    import optimistix as optx
+    import optimistix as optx  # imported only when traced: a cached stage runs without it
 
-    from brdfjax.fitting.marquardt import ScaledLevenbergMarquardt
+    from brdfjax.fitting.marquardt import MarquardtDescent, ScaledLevenbergMarquardt
 
     tol = TOLERANCE[jnp.dtype(starts.dtype)]
-    solver = (ScaledLevenbergMarquardt(rtol=tol, atol=tol) if scaled else
-              optx.LevenbergMarquardt(rtol=tol, atol=tol, linear_solver=lx.Normal(lx.Cholesky())))
+    solver = ScaledLevenbergMarquardt(rtol=tol, atol=tol, descent=MarquardtDescent(scaled),
+                                      cap=cap)
 
     def run(u0):
         solution = optx.least_squares(_free_residuals, solver, u0, args=(prob, bounds),
@@ -181,7 +188,7 @@ def polish(starts, prob: Problem, bounds: Bounds, *, max_steps: int = 1000,
            side_by_side: bool = False) -> PolishResult:
     """Levenberg-Marquardt from many starts, screened, then run to convergence.
 
-    Every start first takes up to ``screen_steps`` steps of optimistix's LM; only the
+    Every start first takes up to ``screen_steps`` steps of unscaled LM; only the
     ``keep`` best then continue, with Marquardt's scaling (`brdfjax.fitting.marquardt`), for up
     to ``max_steps`` more, so that a start along a flat valley is run long only where it
     may win. With ``keep`` at least the number of starts, every start continues, in order.
@@ -197,15 +204,35 @@ def polish(starts, prob: Problem, bounds: Bounds, *, max_steps: int = 1000,
     Returns:
         A `PolishResult` for the surviving starts (steps counted over both rounds).
     """
+    count = starts.shape[0]
     skipped = repeats(starts)
-    screened = _levenberg_marquardt(starts, skipped, prob, bounds, screen_steps, scaled=False,
-                                    side_by_side=side_by_side)
-    count = starts.shape[0]  # skipped repeats (E = inf) sort last
-    best = jnp.argsort(screened.errors)[:keep] if keep < count else jnp.arange(count)
-    final = _levenberg_marquardt(screened.free[best], skipped[best], prob, bounds, max_steps,
-                                 side_by_side=side_by_side)
-    return final._replace(steps=final.steps + screened.steps[best],
-                          evaluations=final.evaluations + screened.evaluations)
+    loop_steps = max(max_steps, screen_steps)
+
+    def lm(free, skip, cap, scaled):
+        return _levenberg_marquardt(free, skip, prob, bounds, loop_steps, scaled, cap,
+                                    side_by_side)
+
+    def ranked(errors):  # the ``keep`` best; skipped repeats (E = inf) sort last
+        return jnp.argsort(errors)[:keep] if keep < count else jnp.arange(count)
+
+    if side_by_side:  # two loops: under vmap a skipped start would still run
+        screened = lm(starts, skipped, screen_steps, False)
+        best = ranked(screened.errors)
+        final = lm(screened.free[best], skipped[best], max_steps, True)
+        return final._replace(steps=final.steps + screened.steps[best],
+                              evaluations=final.evaluations + screened.evaluations)
+
+    def one_round(carry, setting):  # the second round skips all but the kept
+        free, skip = carry
+        out = lm(free, skip, *setting)
+        best = ranked(out.errors)
+        return (out.free, skip | ~jnp.zeros(count, bool).at[best].set(True)), (out, best)
+
+    settings = (jnp.array([screen_steps, max_steps]), jnp.array([False, True]))
+    _, (rounds, best) = jax.lax.scan(one_round, (starts, skipped), settings)
+    kept = jax.tree.map(lambda x: x[1, best[0]], rounds._replace(evaluations=None))
+    return kept._replace(steps=jnp.sum(rounds.steps[:, best[0]], axis=0),
+                         evaluations=jnp.sum(rounds.evaluations))
 
 
 def polish_population(population, prob: Problem, bounds: Bounds, *, starts: int = STARTS,
