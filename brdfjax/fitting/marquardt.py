@@ -62,9 +62,10 @@ class MarquardtDescent(optx.AbstractDescent):
     only read it back.
 
     Attributes:
-        scaled: Marquardt's scaling; False (or a traced False) takes ``D = I``, the
-            steps of `optimistix.LevenbergMarquardt` (the screening round of
-            `brdfjax.fitting.polish`, which runs both rounds through one compiled loop).
+        scaled: Marquardt's scaling; False (or a traced False) takes ``D = I``: the
+            steps of `optimistix.LevenbergMarquardt` with its normal equations solved by
+            Cholesky, to rounding (the screening round of `brdfjax.fitting.polish`, which
+            runs both rounds through one compiled loop).
     """
 
     scaled: bool | jax.Array = True
@@ -120,11 +121,11 @@ class ScaledLevenbergMarquardt(optx.AbstractGaussNewton):
 
     def terminate(self, fn, y, args, options, state, tags):
         """optimistix's test, and a stop at ``cap`` steps (reported as optimistix reports
-        its own ``max_steps``): a cap that may be traced, so that LM runs of different
-        lengths share one compiled loop."""
+        its own ``max_steps``; an earlier failure keeps its own code): a cap that may be
+        traced, so that LM runs of different lengths share one compiled loop."""
         done, result = super().terminate(fn, y, args, options, state, tags)
         if self.cap is None:
             return done, result
-        capped = ~done & (state.num_steps >= self.cap)
+        capped = ~done & (result == optx.RESULTS.successful) & (state.num_steps >= self.cap)
         return done | capped, optx.RESULTS.where(capped, optx.RESULTS.nonlinear_max_steps_reached,
                                                  result)

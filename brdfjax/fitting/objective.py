@@ -401,8 +401,8 @@ def polytope_least_squares(gram, projections, total, low, high, pairs=()):
                     partner[f, variable], slope_of[f, variable] = k, ratio
             for check in wanted:
                 checks[f, kinds.index(check)] = True
-    # Every array below is one (F,) vector per coordinate (or per entry of a K x K matrix),
-    # and each face's choice among a few traced numbers is a chain of selects on the static
+    # Every face-dependent quantity below is one (F,) vector per coordinate (or per entry
+    # of a K x K matrix), and each face's choice among a few traced numbers is a chain of selects on the static
     # structure (`_pick`): XLA:CPU fuses the face algebra into a few elementwise loops,
     # where gathers, (F, K, K) tensors and short reductions under the population's vmap
     # took 4.8x as long for ggx+ggx and 2.9x for ggx+backscatter (scoring 128 members on
@@ -465,8 +465,9 @@ def _pick(options, index):
 
 
 def _total(terms):
-    """The sum of a few arrays, term by term: one elementwise fusion, where XLA:CPU's
-    reduction over a short axis of a large array (K <= 7 here) ran several times slower."""
+    """The sum of a few arrays, term by term: elementwise additions, which XLA:CPU fuses,
+    where its reduction over a short axis of a large array (K <= 7 here) ran several
+    times slower."""
     return functools.reduce(operator.add, terms)
 
 

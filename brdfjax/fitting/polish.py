@@ -18,11 +18,12 @@ LM has no bounds, so it runs in the unconstrained coordinates ``u`` of `brdfjax.
    cement fit ended in a worse basin.
 
 Both rounds run through one compiled LM loop (`brdfjax.fitting.marquardt`'s solver with its
-scaling and its step cap as data, ``lax.scan`` over the two rounds; the second round
-skips all but the kept starts). Two loops, one per round, made the polish twice as long
-to compile (the five-parameter model and ggx+backscatter on 120 points: 1.26-1.76 s
-against 0.62-0.92 s), and every fit ends where it ended (`BENCHMARKS.md`, section
-startup-fit-models-batch-auto).
+scaling and its step cap as data, ``lax.scan`` over the two rounds; the starts leave the
+screening sorted, and the second round runs the first ``keep`` and branches past the
+rest, a branch that stays one under a vmap over samples). Two loops, one per round, made
+the polish twice as long to compile (the five-parameter model and ggx+backscatter on 120
+points: 1.26-1.76 s against 0.62-0.92 s); with one, every model on every bundled real run
+ended where it had, bit for bit (`BENCHMARKS.md`, section startup-fit-models-batch-auto).
 
 Several distinct starts run in one compiled call with ``throw=False``, each reporting
 its own status; the caller keeps the best. A start identical to an earlier one is
@@ -137,7 +138,7 @@ def _is_zero(tangent) -> bool:
 
 
 def _levenberg_marquardt(starts, skipped, prob, bounds, max_steps, scaled=True, cap=None,
-                         side_by_side=False):
+                         side_by_side=False, rows=None):
     """LM from each row of ``starts`` (one after another, or ``side_by_side`` under ``vmap``),
     each with its own status.
 
@@ -145,6 +146,8 @@ def _levenberg_marquardt(starts, skipped, prob, bounds, max_steps, scaled=True, 
     (side by side they run and are then discarded: ``vmap`` makes the branch a select).
     ``scaled``: Marquardt's scaling (`brdfjax.fitting.marquardt`), else the same damping in
     every coordinate; ``cap``: a lower step limit than ``max_steps``, which may be traced.
+    ``rows``: run only the first ``rows`` rows (a number that may be traced but is the same
+    for every sample of an outer ``vmap``, so that skipping the others stays a branch).
     """
     import optimistix as optx  # imported only when traced: a cached stage runs without it
 
@@ -168,10 +171,17 @@ def _levenberg_marquardt(starts, skipped, prob, bounds, max_steps, scaled=True, 
                 jnp.asarray(0, jnp.result_type(int)))
 
     def one(args):
-        return jax.lax.cond(args[1], skip, run, args[0])
+        index, u0, repeat = args
+        if rows is None:
+            return jax.lax.cond(repeat, skip, run, u0)
+        return jax.lax.cond(index < rows, lambda: jax.lax.cond(repeat, skip, run, u0),
+                            lambda: skip(u0))
 
+    index = jnp.arange(starts.shape[0])
     u, params, errors, success, steps = (jax.vmap(one) if side_by_side else
-                                         partial(jax.lax.map, one))((starts, skipped))
+                                         partial(jax.lax.map, one))((index, starts, skipped))
+    if rows is not None:
+        skipped = skipped | (index >= rows)
     evaluations = (1 + prob.model.size) * jnp.sum(jnp.where(skipped, 0, steps + 1))
     return PolishResult(u, params, errors, success, steps, evaluations)
 
@@ -206,33 +216,35 @@ def polish(starts, prob: Problem, bounds: Bounds, *, max_steps: int = 1000,
     """
     count = starts.shape[0]
     skipped = repeats(starts)
-    loop_steps = max(max_steps, screen_steps)
+    loop_steps, kept = max(max_steps, screen_steps), min(keep, count)
 
-    def lm(free, skip, cap, scaled):
+    def lm(free, skip, cap, scaled, rows=None):
         return _levenberg_marquardt(free, skip, prob, bounds, loop_steps, scaled, cap,
-                                    side_by_side)
+                                    side_by_side, rows)
 
-    def ranked(errors):  # the ``keep`` best; skipped repeats (E = inf) sort last
-        return jnp.argsort(errors)[:keep] if keep < count else jnp.arange(count)
+    def ranked(errors):  # best first; skipped repeats (E = inf) sort last
+        return jnp.argsort(errors) if keep < count else jnp.arange(count)
 
     if side_by_side:  # two loops: under vmap a skipped start would still run
         screened = lm(starts, skipped, screen_steps, False)
-        best = ranked(screened.errors)
+        best = ranked(screened.errors)[:kept]
         final = lm(screened.free[best], skipped[best], max_steps, True)
         return final._replace(steps=final.steps + screened.steps[best],
                               evaluations=final.evaluations + screened.evaluations)
 
-    def one_round(carry, setting):  # the second round skips all but the kept
+    def one_round(carry, setting):  # the starts leave sorted: the second round runs the first
         free, skip = carry
-        out = lm(free, skip, *setting)
-        best = ranked(out.errors)
-        return (out.free, skip | ~jnp.zeros(count, bool).at[best].set(True)), (out, best)
+        rows, cap, scaled = setting
+        out = lm(free, skip, cap, scaled, rows)
+        order = ranked(out.errors)
+        return (out.free[order], skip[order]), (out, order)
 
-    settings = (jnp.array([screen_steps, max_steps]), jnp.array([False, True]))
-    _, (rounds, best) = jax.lax.scan(one_round, (starts, skipped), settings)
-    kept = jax.tree.map(lambda x: x[1, best[0]], rounds._replace(evaluations=None))
-    return kept._replace(steps=jnp.sum(rounds.steps[:, best[0]], axis=0),
-                         evaluations=jnp.sum(rounds.evaluations))
+    settings = (jnp.array([count, kept]), jnp.array([screen_steps, max_steps]),
+                jnp.array([False, True]))
+    _, (rounds, order) = jax.lax.scan(one_round, (starts, skipped), settings)
+    final = jax.tree.map(lambda x: x[1, :kept], rounds._replace(evaluations=None))
+    return final._replace(steps=final.steps + rounds.steps[0, order[0, :kept]],
+                          evaluations=jnp.sum(rounds.evaluations))
 
 
 def polish_population(population, prob: Problem, bounds: Bounds, *, starts: int = STARTS,
