@@ -402,11 +402,11 @@ def polytope_least_squares(gram, projections, total, low, high, pairs=()):
             for check in wanted:
                 checks[f, kinds.index(check)] = True
     # Every face-dependent quantity below is one (F,) vector per coordinate (or per entry
-    # of a K x K matrix), and each face's choice among a few traced numbers is a chain of selects on the static
-    # structure (`_pick`): XLA:CPU fuses the face algebra into a few elementwise loops,
-    # where gathers, (F, K, K) tensors and short reductions under the population's vmap
-    # took 4.8x as long for ggx+ggx and 2.9x for ggx+backscatter (scoring 128 members on
-    # 120 points: 9.2 -> 1.9 ms and 2.6 -> 0.9 ms).
+    # of a K x K matrix), and each face's choice among a few traced numbers is a chain of
+    # selects on the static structure (`_pick`): XLA:CPU fuses the face algebra into a few
+    # elementwise loops, where gathers, (F, K, K) tensors and short reductions under the
+    # population's vmap took 4.8x as long for ggx+ggx and 2.9x for ggx+backscatter
+    # (scoring 128 members on 120 points: 9.2 -> 1.9 ms and 2.6 -> 0.9 ms).
     values = [jnp.asarray(v, dtype) for v in values]
     ratios = [jnp.asarray(r, dtype) for r in ratios] + [jnp.asarray(0.0, dtype)]
     columns = range(count)
@@ -444,7 +444,7 @@ def polytope_least_squares(gram, projections, total, low, high, pairs=()):
     satisfied = [(x[k] >= low[k]) & (x[k] <= high[k]) for k in columns]  # kind 0
     satisfied += [x[k] >= 0 for k in columns]  # kind 1
     sums = [w_i * x[i] + w_j * x[j] for i, j, w_i, w_j, *_ in pairs]
-    satisfied += [(total_ >= p[4]) & (total_ <= p[5]) for total_, p in zip(sums, pairs)]  # 2
+    satisfied += [(total_ >= p[4]) & (total_ <= p[5]) for total_, p in zip(sums, pairs)]  # kind 2
     inside = functools.reduce(operator.and_, (
         ~checks[:, c] | satisfied[c] for c in range(len(kinds)) if np.any(checks[:, c])))
     value = total - 2 * _total(x[k] * projections[k] for k in columns) + _total(
