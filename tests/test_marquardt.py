@@ -77,43 +77,43 @@ def _exponentials(u, args):
     return u[0] * jnp.exp(-u[1] * t) + u[2] * jnp.exp(-u[3] * t) - observed
 
 
+EXPONENTIALS_START = [1.0, 2.0, 1.0, 0.1]  # rates 2 and 0.1 against the data's 1.3 and 0.2
+
+
 def test_without_scaling_the_steps_are_optimistix_levenberg_marquardts():
     # The screening round's solver takes the same damped steps as optimistix's own LM (with
     # the normal equations by Cholesky, as before it replaced it): the same path, to
     # rounding, step by step. (Where the path ends depends on rounding: the tolerance test
     # passes a few steps apart on this ill-conditioned fit.)
-    start = [1.0, 2.0, 1.0, 0.1]
     unscaled = ScaledLevenbergMarquardt(rtol=1e-12, atol=1e-12,
                                         descent=MarquardtDescent(scaled=False))
     theirs = optx.LevenbergMarquardt(rtol=1e-12, atol=1e-12,
                                      linear_solver=lx.Normal(lx.Cholesky()))
     for steps in (2, 5, 12, 20):
-        ours, _ = _solve(unscaled, _exponentials, start, max_steps=steps)
-        reference, _ = _solve(theirs, _exponentials, start, max_steps=steps)
+        ours, _ = _solve(unscaled, _exponentials, EXPONENTIALS_START, max_steps=steps)
+        reference, _ = _solve(theirs, _exponentials, EXPONENTIALS_START, max_steps=steps)
         np.testing.assert_allclose(ours.value, reference.value, rtol=1e-13, atol=1e-13)
-    ours, _ = _solve(unscaled, _exponentials, start)
+    ours, _ = _solve(unscaled, _exponentials, EXPONENTIALS_START)
     np.testing.assert_allclose(ours.value, [2.0, 1.3, 0.5, 0.2], rtol=1e-8)
 
 
 @pytest.mark.parametrize("cap", [0, 1, 3])
 def test_a_step_cap_stops_where_optimistix_max_steps_stops(cap):
-    start = [1.0, 2.0, 1.0, 0.1]
     capped, capped_steps = _solve(ScaledLevenbergMarquardt(rtol=1e-12, atol=1e-12,
                                                            cap=jnp.asarray(cap)),
-                                  _exponentials, start)
+                                  _exponentials, EXPONENTIALS_START)
     limited, limited_steps = _solve(ScaledLevenbergMarquardt(rtol=1e-12, atol=1e-12),
-                                    _exponentials, start, max_steps=cap)
+                                    _exponentials, EXPONENTIALS_START, max_steps=cap)
     assert capped_steps == limited_steps == cap
     assert capped.result == limited.result == optx.RESULTS.nonlinear_max_steps_reached
     np.testing.assert_array_equal(capped.value, limited.value)
 
 
 def test_a_cap_beyond_convergence_changes_nothing():
-    start = [1.0, 2.0, 1.0, 0.1]
     capped, capped_steps = _solve(ScaledLevenbergMarquardt(rtol=1e-12, atol=1e-12, cap=500),
-                                  _exponentials, start)
+                                  _exponentials, EXPONENTIALS_START)
     free, free_steps = _solve(ScaledLevenbergMarquardt(rtol=1e-12, atol=1e-12),
-                              _exponentials, start)
+                              _exponentials, EXPONENTIALS_START)
     assert capped.result == free.result == optx.RESULTS.successful
     assert capped_steps == free_steps < 500
     np.testing.assert_array_equal(capped.value, free.value)
