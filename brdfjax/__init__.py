@@ -34,17 +34,28 @@ if "xla_backend_optimization_level" not in _flags:
 # XLA:CPU's elemental emitters compile brdfjax's loops far faster than its MLIR fusion
 # emitters, and the code runs as fast with the same results: the first `brdfjax models` took
 # 28.0 s instead of 39.9 s, its compilations 29 s of CPU instead of 52 s (BENCHMARKS.md,
-# section startup-fit-models-batch-auto). XLA aborts the process on a flag it does not
-# know, and newer XLA retires this one, so it is set only on the jaxlib it was measured
-# with. Reading that version costs `import brdfjax` about 30 ms (importlib.metadata, which
-# JAX imports anyway).
-_ELEMENTAL_EMITTERS_JAXLIB = ("0.10.",)
-if "xla_cpu_use_fusion_emitters" not in _flags:
+# section startup-fit-models-batch-auto).
+# XLA:CPU compiles a while loop whose body accesses less than a threshold of bytes (1 kB by
+# default) as one function, instead of one dispatched kernel per operation. brdfjax opens
+# the threshold to loops of any size and writes the loops that gain so that nothing else
+# blocks the pass (`brdfjax.fitting.marquardt`: Levenberg-Marquardt on up to 256 points);
+# a loop with a library call (LAPACK, or a matrix product handed to YNNPACK) stays as it
+# was. The cube of `brdfjax batch` (64 points a sample) fits about 1.4x faster
+# (BENCHMARKS.md, section cube).
+# XLA aborts the process on a flag it does not know, and newer XLA retires such flags, so
+# both are set only on the jaxlib they were measured with. Reading that version costs
+# `import brdfjax` about 30 ms (importlib.metadata, which JAX imports anyway).
+_MEASURED_JAXLIB = ("0.10.",)
+_MEASURED_FLAGS = {"xla_cpu_use_fusion_emitters": "false",
+                   "xla_backend_extra_options": "xla_cpu_small_while_loop_byte_threshold=1000000000"}
+if any(name not in _flags for name in _MEASURED_FLAGS):
     from importlib import metadata as _metadata
 
     try:
-        if _metadata.version("jaxlib").startswith(_ELEMENTAL_EMITTERS_JAXLIB):
-            _flags = f"{_flags} --xla_cpu_use_fusion_emitters=false"
+        if _metadata.version("jaxlib").startswith(_MEASURED_JAXLIB):
+            for _name, _value in _MEASURED_FLAGS.items():
+                if _name not in _flags:
+                    _flags = f"{_flags} --{_name}={_value}"
     except _metadata.PackageNotFoundError:
         pass
 os.environ["XLA_FLAGS"] = _flags

@@ -1,5 +1,7 @@
 """Fitting: recovery of known parameters, reproducibility, status, and no recompilation."""
 
+import os
+
 import jax
 import numpy as np
 import pytest
@@ -204,14 +206,22 @@ def test_the_genetic_search_breeds_as_its_draws_say():
     assert stats.kstest(mixed, "uniform").pvalue > 1e-4
 
 
-def test_the_residuals_jvp_is_plain_autodiff_in_the_parameters_and_the_data(white_paint):
+def _first(data, points):
+    return data.select(np.arange(len(data)) < points)
+
+
+@pytest.mark.parametrize("points", [64, 716])
+def test_the_residuals_jvp_is_plain_autodiff_in_the_parameters_and_the_data(white_paint,
+                                                                            points):
     """LM's residuals form their Jacobian in a custom JVP rule (`_free_residuals`): its
     tangents equal those of the plain function, in the free coordinates and, where someone
-    differentiates in them, in the measured values (a straightforward derivative)."""
+    differentiates in them, in the measured values (a straightforward derivative); on a
+    problem small enough for LM's loop to run as one function (its products written as
+    sums of columns) and on a larger one."""
     from brdfjax.fitting.objective import residuals
     from brdfjax.fitting.polish import _free_residuals
 
-    prob, bounds = problem(white_paint), default_bounds()
+    prob, bounds = problem(_first(white_paint, points)), default_bounds()
     u = to_free(np.asarray(PAPER_SAMPLES["white_paint"]), bounds)
     du = np.linspace(-1.0, 1.0, 5)
     dt = np.cos(np.arange(prob.target.size))
@@ -239,13 +249,32 @@ def test_the_residuals_jvp_is_plain_autodiff_in_the_parameters_and_the_data(whit
     (expected_back,) = jax.linear_transpose(expected_linear, u)(dt)
     np.testing.assert_allclose(back, expected_back, rtol=1e-12, atol=1e-14)
     # in u alone, as LM linearises it: the Jacobian against central differences
+    # (the differences round to a few eps |r| / step: the absolute tolerance)
     jacobian = jax.jacfwd(lambda u: _free_residuals(u, (prob, bounds)))(u)
     step = 1e-6
+    rounding = 1e-8 * np.abs(plain(u, prob.target)).max()
     for k in range(5):
         e = np.eye(5)[k] * step
         difference = (plain(u + e, prob.target) - plain(u - e, prob.target)) / (2 * step)
         np.testing.assert_allclose(jacobian[:, k], difference, rtol=1e-5,
-                                   atol=1e-8 * np.abs(difference).max())
+                                   atol=max(rounding, 1e-8 * np.abs(difference).max()))
+
+
+@pytest.mark.skipif("xla_cpu_small_while_loop_byte_threshold" not in os.environ["XLA_FLAGS"],
+                    reason="brdfjax sets XLA's small-loop threshold only on the jaxlib it measured")
+def test_levenberg_marquardt_on_a_small_problem_compiles_as_one_function(white_paint):
+    """On at most `ONE_FUNCTION_POINTS` points LM's loop holds nothing that keeps XLA:CPU
+    from compiling it as one function (no LAPACK call, no product handed to YNNPACK); on
+    more it keeps LAPACK's solve and its kernels (`brdfjax.fitting.marquardt`)."""
+    from brdfjax.fitting.marquardt import ONE_FUNCTION_POINTS
+
+    bounds = default_bounds()
+    for points, one in ((ONE_FUNCTION_POINTS, True), (ONE_FUNCTION_POINTS + 64, False)):
+        prob = problem(_first(white_paint, points))
+        starts = to_free(np.tile(np.asarray(PAPER_SAMPLES["white_paint"]), (3, 1)), bounds)
+        text = jax.jit(lambda s, p: polish(s, p, bounds)).lower(starts, prob).compile().as_text()
+        assert ("xla_cpu_small_call" in text) == one
+        assert ("lapack" in text) != one
 
 
 def test_fresnel_free_start(clean_white_paint):

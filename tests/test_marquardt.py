@@ -8,7 +8,12 @@ import optimistix as optx
 import pytest
 
 from brdfjax.fitting.bounds import SATURATED, Bounds, from_free
-from brdfjax.fitting.marquardt import MarquardtDescent, ScaledLevenbergMarquardt
+from brdfjax.fitting.marquardt import (
+    ONE_FUNCTION_POINTS,
+    MarquardtDescent,
+    ScaledLevenbergMarquardt,
+    one_function,
+)
 
 UNIT_SQUARE = Bounds(np.zeros(2), np.ones(2), np.zeros(2, dtype=int))
 
@@ -70,30 +75,42 @@ def test_a_parameter_that_changes_nothing_takes_no_step():
     np.testing.assert_allclose(float(solution.value[0]), -0.6, rtol=1e-12)
 
 
-def _exponentials(u, args):
-    """A two-exponential curve fit, nonlinear in both rates (a dozen LM steps)."""
-    t = jnp.linspace(0.0, 3.0, 12)
+def exponentials(points=12):
+    """A two-exponential curve fit on ``points`` times, nonlinear in both rates (a dozen LM
+    steps)."""
+    t = jnp.linspace(0.0, 3.0, points)
     observed = 2.0 * jnp.exp(-1.3 * t) + 0.5 * jnp.exp(-0.2 * t)
-    return u[0] * jnp.exp(-u[1] * t) + u[2] * jnp.exp(-u[3] * t) - observed
+
+    def residuals(u, args):
+        return u[0] * jnp.exp(-u[1] * t) + u[2] * jnp.exp(-u[3] * t) - observed
+
+    return residuals
+
+
+_exponentials = exponentials()
 
 
 EXPONENTIALS_START = [1.0, 2.0, 1.0, 0.1]  # rates 2 and 0.1 against the data's 1.3 and 0.2
 
 
-def test_without_scaling_the_steps_are_optimistix_levenberg_marquardts():
+@pytest.mark.parametrize("points", [12, ONE_FUNCTION_POINTS + 1])
+def test_without_scaling_the_steps_are_optimistix_levenberg_marquardts(points):
     # The screening round's solver takes the same damped steps as optimistix's own LM (with
     # the normal equations by Cholesky, as before it replaced it): the same path, to
-    # rounding, step by step. (Where the path ends depends on rounding: the tolerance test
-    # passes a few steps apart on this ill-conditioned fit.)
+    # rounding, step by step, whether the step is written as one function (unrolled
+    # Cholesky) or with LAPACK's solve. (Where the path ends depends on rounding: the
+    # tolerance test passes a few steps apart on this ill-conditioned fit.)
+    assert one_function(points) == (points == 12)
+    residuals = exponentials(points)
     unscaled = ScaledLevenbergMarquardt(rtol=1e-12, atol=1e-12,
                                         descent=MarquardtDescent(scaled=False))
     theirs = optx.LevenbergMarquardt(rtol=1e-12, atol=1e-12,
                                      linear_solver=lx.Normal(lx.Cholesky()))
     for steps in (2, 5, 12, 20):
-        ours, _ = _solve(unscaled, _exponentials, EXPONENTIALS_START, max_steps=steps)
-        reference, _ = _solve(theirs, _exponentials, EXPONENTIALS_START, max_steps=steps)
+        ours, _ = _solve(unscaled, residuals, EXPONENTIALS_START, max_steps=steps)
+        reference, _ = _solve(theirs, residuals, EXPONENTIALS_START, max_steps=steps)
         np.testing.assert_allclose(ours.value, reference.value, rtol=1e-13, atol=1e-13)
-    ours, _ = _solve(unscaled, _exponentials, EXPONENTIALS_START)
+    ours, _ = _solve(unscaled, residuals, EXPONENTIALS_START)
     np.testing.assert_allclose(ours.value, [2.0, 1.3, 0.5, 0.2], rtol=1e-8)
 
 

@@ -26,13 +26,13 @@ def test_import_brdfjax_loads_no_jax():
 
 
 def test_import_sets_the_xla_flags_unless_given():
-    """LLVM at -O2, and on the jaxlib it was measured with, XLA:CPU's elemental emitters;
-    a setting given in XLA_FLAGS is kept. A jit then runs: XLA took the flags (it aborts on
-    one it does not know)."""
+    """LLVM at -O2, and on the jaxlib they were measured with, XLA:CPU's elemental emitters
+    and while loops of any size compiled as one function; a setting given in XLA_FLAGS is
+    kept. A jit then runs: XLA took the flags (it aborts on one it does not know)."""
     import os
     from importlib import metadata
 
-    from brdfjax import _ELEMENTAL_EMITTERS_JAXLIB
+    from brdfjax import _MEASURED_FLAGS, _MEASURED_JAXLIB
 
     code = ("import os, brdfjax, jax; jax.jit(lambda x: x + 1)(1.0).block_until_ready(); "
             "print(os.environ['XLA_FLAGS'])")
@@ -43,13 +43,16 @@ def test_import_sets_the_xla_flags_unless_given():
         return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                               check=True, env=env).stdout.split()
 
-    level, emitters = "--xla_backend_optimization_level=2", "--xla_cpu_use_fusion_emitters=false"
-    ours = [level] + ([emitters] if metadata.version("jaxlib").startswith(
-        _ELEMENTAL_EMITTERS_JAXLIB) else [])
+    level = "--xla_backend_optimization_level=2"
+    emitters = "--xla_cpu_use_fusion_emitters=false"
+    loops = "--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=1000000000"
+    measured = metadata.version("jaxlib").startswith(_MEASURED_JAXLIB)
+    assert [f"--{k}={v}" for k, v in _MEASURED_FLAGS.items()] == [emitters, loops]
+    ours = [level] + ([emitters, loops] if measured else [])
     assert flags(None) == ours
     assert flags("--xla_force_host_platform_device_count=2") == [
         "--xla_force_host_platform_device_count=2", *ours]
     assert flags("--xla_backend_optimization_level=3") == [
         "--xla_backend_optimization_level=3", *ours[1:]]
     assert flags("--xla_cpu_use_fusion_emitters=true") == [
-        "--xla_cpu_use_fusion_emitters=true", level]
+        "--xla_cpu_use_fusion_emitters=true", level] + ([loops] if measured else [])

@@ -25,6 +25,17 @@ no step: its gradient is zero too. `brdfjax.fitting.bounds.from_free` clips ``u`
 ±`brdfjax.fitting.bounds.SATURATED`, so a coordinate on a bound has an exactly zero column, not
 one so small that its scaled step would be enormous and never settle (without the clip,
 Torrance-Sparrow on a 02aeroglaze run ran to its 1000-step cap).
+
+On a small problem (at most `ONE_FUNCTION_POINTS` points) every step is written so that
+XLA:CPU compiles LM's whole loop as one function (its small-while-loop pass, which
+`brdfjax` opens to loops of any size): the products with the Jacobian as sums of columns
+and the normal equations solved by an unrolled Cholesky factorisation, because a LAPACK
+call or a matrix product handed to XLA's YNNPACK library keeps the loop as it is, one
+dispatched kernel per operation, about 140 per step. An LM step of the five-parameter model
+on 64 points then takes about half the time. On more points the loop's kernels win: the
+one function's code is slower per point (on 512 and 716 points the polish took 10-16 ms
+as one function against 7-13 ms as kernels), so there the step keeps its matrix products
+and LAPACK's solve (`BENCHMARKS.md`, section cube).
 """
 
 from __future__ import annotations
@@ -35,7 +46,26 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import lineax as lx
+import numpy as np
 import optimistix as optx
+
+from brdfjax.fitting.objective import cholesky_solve
+
+# Problems of at most this many points run LM's loop as one function (module docstring).
+ONE_FUNCTION_POINTS = 256
+
+
+def one_function(points: int) -> bool:
+    """Whether LM on ``points`` residuals is written to compile as one function."""
+    return points <= ONE_FUNCTION_POINTS
+
+
+def jacobian_product(jacobian, tangent):
+    """``jacobian @ tangent``; on a small problem as a sum of the columns (module
+    docstring), which leaves XLA no matrix product to hand to a library."""
+    if not one_function(jacobian.shape[0]):
+        return jacobian @ tangent
+    return sum(jacobian[:, k] * tangent[k] for k in range(jacobian.shape[1]))
 
 
 class _Linearised(eqx.Module):
@@ -91,11 +121,22 @@ class MarquardtDescent(optx.AbstractDescent):
         damping = jnp.where(step_size > eps, 1 / jnp.maximum(step_size, eps),
                             jnp.finfo(step_size.dtype).max)
         columns = state.columns
-        normal = columns.T @ columns + damping * jnp.eye(columns.shape[1], dtype=columns.dtype)
-        solution = lx.linear_solve(
-            lx.MatrixLinearOperator(normal, lx.positive_semidefinite_tag),
-            columns.T @ state.residual, lx.Cholesky(), throw=False)
-        return -solution.value / state.scale, optx.RESULTS.promote(solution.result)
+        size = columns.shape[1]
+        if not one_function(columns.shape[0]):
+            normal = columns.T @ columns + damping * jnp.eye(size, dtype=columns.dtype)
+            solution = lx.linear_solve(
+                lx.MatrixLinearOperator(normal, lx.positive_semidefinite_tag),
+                columns.T @ state.residual, lx.Cholesky(), throw=False)
+            return -solution.value / state.scale, optx.RESULTS.promote(solution.result)
+        # the Gram matrix's upper triangle in one reduction, and the solve unrolled
+        rows, cols = np.triu_indices(size)
+        entries = dict(zip(zip(rows.tolist(), cols.tolist()),
+                           jnp.sum(columns[:, rows] * columns[:, cols], axis=0)))
+        normal = [[entries[min(i, j), max(i, j)] + (damping if i == j else 0.0)
+                   for j in range(size)] for i in range(size)]
+        solution, _ = cholesky_solve(normal, list(jnp.sum(columns * state.residual[:, None],
+                                                          axis=0)))
+        return -jnp.stack(solution) / state.scale, optx.RESULTS.successful
 
 
 def _silent(**_):

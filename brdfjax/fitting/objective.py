@@ -317,7 +317,7 @@ def box_least_squares(gram, projections, total, low, high, pair=None):
                    for i in free]
         rhs = [sum(_times(coords[k][1][i], residual[k]) for k in range(count)
                    if i in coords[k][1]) for i in free]
-        solved, regular = _cholesky_solve(reduced, rhs)
+        solved, regular = cholesky_solve(reduced, rhs)
         y = dict(zip(free, solved))
         x = [a + sum(_times(b, y[j]) for j, b in terms.items()) for a, terms in coords]
         value = total - 2 * sum(projections[k] * x[k] for k in range(count)) + sum(
@@ -431,7 +431,7 @@ def polytope_least_squares(gram, projections, total, low, high, pairs=()):
     # Cholesky unrolled over the K coordinates, vectorised over the faces: no LAPACK call
     # (LAPACK's custom calls were seen to hang XLA on CPU with several threads or devices,
     # see `brdfjax.fitting.polish`; this is as fast for K <= 7).
-    y, pivots = _cholesky_solve(reduced, rhs, with_pivots=True)
+    y, pivots = cholesky_solve(reduced, rhs, with_pivots=True)
     y = [jnp.where(free[:, v], y[v], 0.0) for v in columns]
     regular = functools.reduce(operator.and_, (
         pinned[:, i] | (pivots[i] > PIVOT_TOLERANCE * diagonal[i]) for i in columns))
@@ -525,7 +525,7 @@ def _pair_faces(weights, s_low, s_high):
     return inside + edges + corners
 
 
-def _cholesky_solve(matrix, rhs, with_pivots=False):
+def cholesky_solve(matrix, rhs, with_pivots=False):
     """Solve a small SPD system given as nested lists (unrolled); also whether it is regular
     (or, ``with_pivots``, each pivot, for the caller to judge)."""
     size = len(rhs)

@@ -110,10 +110,12 @@ def _free_residuals_jvp(primals, tangents):
         value = _free_residuals.fun(u, args)
         out = jnp.zeros_like(value)
     else:
+        from brdfjax.fitting.marquardt import jacobian_product  # traced only, as below
+
         basis = jnp.eye(u.shape[0], dtype=u.dtype)
         value, jacobian = jax.vmap(lambda e: jax.jvp(lambda v: _free_residuals.fun(v, args),
                                                      (u,), (e,)), out_axes=(None, 1))(basis)
-        out = jacobian @ tangent
+        out = jacobian_product(jacobian, tangent)
     leaves, structure = jax.tree.flatten(args)
     moved = jax.tree.leaves(args_tangent, is_leaf=_is_zero)
     moving = [k for k, t in enumerate(moved) if not _is_zero(t)]
