@@ -42,7 +42,9 @@ run at once and each loop step is a kernel launch, ``side_by_side`` runs them un
 
 Each step solves its P x P normal equations by Cholesky: with at most 5 parameters they
 are tiny, it is the fastest here, and unlike lineax's default QR it was not seen to
-deadlock on several simulated CPU devices (QR and SVD sat at 0 % CPU for 19 minutes).
+deadlock on several simulated CPU devices (QR and SVD sat at 0 % CPU for 19 minutes). On
+at most `brdfjax.fitting.marquardt.ONE_FUNCTION_POINTS` points the factorisation is
+unrolled and LM's whole loop compiles as one function (`brdfjax.fitting.marquardt`).
 """
 
 from __future__ import annotations
