@@ -40,8 +40,9 @@ if "xla_backend_optimization_level" not in _flags:
 # the threshold to loops of any size and writes the loops that gain so that nothing else
 # blocks the pass (`brdfjax.fitting.marquardt`: Levenberg-Marquardt on up to 256 points);
 # a loop with a library call (LAPACK, or a matrix product handed to YNNPACK) stays as it
-# was. The cube of `brdfjax batch` (64 points a sample) fits about 1.4x faster
-# (BENCHMARKS.md, section cube).
+# was, and loops of JAX's own without one (threefry's rounds, rolled on CPU) become one
+# function too. The cube of `brdfjax batch` (64 points a sample) fits about 1.4x faster,
+# the 716-point batch as fast (BENCHMARKS.md, section cube).
 # XLA aborts the process on a flag it does not know, and newer XLA retires such flags, so
 # both are set only on the jaxlib they were measured with. Reading that version costs
 # `import brdfjax` about 30 ms (importlib.metadata, which JAX imports anyway).
