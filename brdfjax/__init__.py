@@ -38,7 +38,7 @@ if "xla_backend_optimization_level" not in _flags:
 # XLA:CPU compiles a while loop whose body accesses less than a threshold of bytes (1 kB by
 # default) as one function, instead of one dispatched kernel per operation. brdfjax opens
 # the threshold to loops of any size and writes the loops that gain so that nothing else
-# blocks the pass (`brdfjax.fitting.marquardt`: Levenberg-Marquardt on up to 256 points);
+# blocks the pass (`brdfjax.fitting.marquardt`: Levenberg-Marquardt on small problems);
 # a loop with a library call (LAPACK, or a matrix product handed to YNNPACK) stays as it
 # was, and loops of JAX's own without one (threefry's rounds, rolled on CPU) become one
 # function too. The cube of `brdfjax batch` (64 points a sample) fits about 1.4x faster,

@@ -1,6 +1,7 @@
 """Fitting: recovery of known parameters, reproducibility, status, and no recompilation."""
 
 import os
+from functools import partial
 
 import jax
 import numpy as np
@@ -23,6 +24,7 @@ from brdfjax.fitting.evolve import COUNTED, ascending, evolve
 from brdfjax.fitting.fit import fit
 from brdfjax.fitting.objective import _geometry, problem, projected, solve_linear
 from brdfjax.fitting.polish import polish, polish_population, population_starts
+from brdfjax.models import get
 from brdfjax.models.five import FRESNEL_FREE_A
 from brdfjax.models.paper import FIVE, PAPER_SAMPLES, evaluate
 
@@ -249,10 +251,10 @@ def test_the_residuals_jvp_is_plain_autodiff_in_the_parameters_and_the_data(whit
     (expected_back,) = jax.linear_transpose(expected_linear, u)(dt)
     np.testing.assert_allclose(back, expected_back, rtol=1e-12, atol=1e-14)
     # in u alone, as LM linearises it: the Jacobian against central differences
-    # (the differences round to a few eps |r| / step: the absolute tolerance)
+    # (each difference rounds to a few eps |sqrt(w) f| / step: the absolute tolerance)
     jacobian = jax.jacfwd(lambda u: _free_residuals(u, (prob, bounds)))(u)
     step = 1e-6
-    rounding = 1e-8 * np.abs(plain(u, prob.target)).max()
+    rounding = 1e-8 * np.abs(np.sqrt(prob.weight) * prob.target).max()
     for k in range(5):
         e = np.eye(5)[k] * step
         difference = (plain(u + e, prob.target) - plain(u - e, prob.target)) / (2 * step)
@@ -262,19 +264,28 @@ def test_the_residuals_jvp_is_plain_autodiff_in_the_parameters_and_the_data(whit
 
 @pytest.mark.skipif("xla_cpu_small_while_loop_byte_threshold" not in os.environ["XLA_FLAGS"],
                     reason="brdfjax sets XLA's small-loop threshold only on the jaxlib it measured")
-def test_levenberg_marquardt_on_a_small_problem_compiles_as_one_function(white_paint):
-    """On at most `ONE_FUNCTION_POINTS` points LM's loop holds nothing that keeps XLA:CPU
-    from compiling it as one function (no LAPACK call, no product handed to YNNPACK); on
-    more it keeps LAPACK's solve and its kernels (`brdfjax.fitting.marquardt`)."""
-    from brdfjax.fitting.marquardt import ONE_FUNCTION_POINTS
+@pytest.mark.parametrize("name, one, beyond", [("five", 256, 320), ("ggx+ggx", 128, 192)])
+def test_levenberg_marquardt_on_a_small_problem_compiles_as_one_function(white_paint, name,
+                                                                         one, beyond):
+    """On a small problem (`one_function`) LM's loop holds nothing that keeps XLA:CPU from
+    compiling it as one function (no LAPACK call, no operation handed to YNNPACK); on a
+    larger one, and with the starts side by side, it keeps LAPACK's solve and its kernels
+    (`brdfjax.fitting.marquardt`). A sum of two lobes (7 unknowns) is small on fewer points:
+    on 192, XLA would hand its Gram reduction to YNNPACK."""
+    from brdfjax.fitting.marquardt import one_function
 
-    bounds = default_bounds()
-    for points, one in ((ONE_FUNCTION_POINTS, True), (ONE_FUNCTION_POINTS + 64, False)):
-        prob = problem(_first(white_paint, points))
-        starts = to_free(np.tile(np.asarray(PAPER_SAMPLES["white_paint"]), (3, 1)), bounds)
-        text = jax.jit(lambda s, p: polish(s, p, bounds)).lower(starts, prob).compile().as_text()
-        assert ("xla_cpu_small_call" in text) == one
-        assert ("lapack" in text) != one
+    model = get(name)
+    bounds = default_bounds(model)
+    starts = np.zeros((3, model.size))
+    for points, side_by_side, compact in ((one, False, True), (beyond, False, False),
+                                          (one, True, False)):
+        assert one_function(points, model.size) == (points == one)
+        prob = problem(_first(white_paint, points), model)
+        text = jax.jit(partial(polish, bounds=bounds, side_by_side=side_by_side)).lower(
+            starts, prob).compile().as_text()
+        assert ("xla_cpu_small_call" in text) == compact
+        assert ("lapack" in text) != compact
+        assert "ynn" not in text or not compact
 
 
 def test_fresnel_free_start(clean_white_paint):

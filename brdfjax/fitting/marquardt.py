@@ -26,16 +26,21 @@ no step: its gradient is zero too. `brdfjax.fitting.bounds.from_free` clips ``u`
 one so small that its scaled step would be enormous and never settle (without the clip,
 Torrance-Sparrow on a 02aeroglaze run ran to its 1000-step cap).
 
-On a small problem (at most `ONE_FUNCTION_POINTS` points) every step is written so that
-XLA:CPU compiles LM's whole loop as one function (its small-while-loop pass, which
-`brdfjax` opens to loops of any size): the products with the Jacobian as sums of columns
-and the normal equations solved by an unrolled Cholesky factorisation, because a LAPACK
-call or a matrix product handed to XLA's YNNPACK library keeps the loop as it is, one
-dispatched kernel per operation, about 140 per step. An LM step of the five-parameter model
-on 64 points then takes about half the time. On more points the loop's kernels win: the
-one function's code is slower per point (on 512 and 716 points the polish took 10-16 ms
-as one function against 7-13 ms as kernels), so there the step keeps its matrix products
-and LAPACK's solve (`BENCHMARKS.md`, section cube).
+On a small problem every step is written so that XLA:CPU compiles LM's whole loop as one
+function (its small-while-loop pass, which `brdfjax` opens to loops of any size): the
+products with the Jacobian as sums of columns, the Gram matrix's upper triangle as one
+reduction and the normal equations solved by an unrolled Cholesky factorisation, because a
+LAPACK call or an operation handed to XLA's YNNPACK library keeps the loop as it is, one
+dispatched kernel per operation, about 140 per step. An LM step of the five-parameter
+model on 64 points then takes about half the time. "Small" is a Gram reduction of at most
+`ONE_FUNCTION_SIZE` elements (points x P (P + 1) / 2): beyond it jaxlib 0.10's XLA hands
+that reduction to YNNPACK (measured: at 256 points for 6 parameters, 192 for 7, 128 for 8,
+none up to 256 for the five-parameter model), and the loop would stay kernels with the
+slower unrolled step (ggx+ggx on 192 padded points: 65 against 39 ms per polish). On more
+points the kernels win anyway: the one function's code is slower per point (the
+five-parameter model's polish on 512 and 716 points took 10-16 ms as one function against
+7-13 ms as kernels). There, and for starts side by side (``compact``), the step keeps its
+matrix products and LAPACK's solve (`BENCHMARKS.md`, section cube).
 """
 
 from __future__ import annotations
@@ -51,19 +56,21 @@ import optimistix as optx
 
 from brdfjax.fitting.objective import cholesky_solve
 
-# Problems of at most this many points run LM's loop as one function (module docstring).
-ONE_FUNCTION_POINTS = 256
+# The largest Gram reduction (points x the P (P + 1) / 2 entries of the upper triangle) with
+# which LM's loop runs as one function (module docstring).
+ONE_FUNCTION_SIZE = 4096
 
 
-def one_function(points: int) -> bool:
-    """Whether LM on ``points`` residuals is written to compile as one function."""
-    return points <= ONE_FUNCTION_POINTS
+def one_function(points: int, parameters: int) -> bool:
+    """Whether LM on ``points`` residuals in ``parameters`` unknowns is written to compile as
+    one function."""
+    return points * parameters * (parameters + 1) // 2 <= ONE_FUNCTION_SIZE
 
 
 def jacobian_product(jacobian, tangent):
     """``jacobian @ tangent``; on a small problem as a sum of the columns (module
     docstring), which leaves XLA no matrix product to hand to a library."""
-    if not one_function(jacobian.shape[0]):
+    if not one_function(*jacobian.shape):
         return jacobian @ tangent
     return sum(jacobian[:, k] * tangent[k] for k in range(jacobian.shape[1]))
 
@@ -96,9 +103,14 @@ class MarquardtDescent(optx.AbstractDescent):
             steps of `optimistix.LevenbergMarquardt` with its normal equations solved by
             Cholesky, to rounding (the screening round of `brdfjax.fitting.polish`, which
             runs both rounds through one compiled loop).
+        compact: on a small problem (`one_function`), the step written for one compiled
+            function (module docstring); False keeps the matrix form at any size, for LM's
+            starts side by side under ``vmap``, where XLA hands the batched reduction to
+            YNNPACK anyway.
     """
 
     scaled: bool | jax.Array = True
+    compact: bool = True
 
     def init(self, y, f_info_struct) -> _Linearised:
         points, size = f_info_struct.residual.shape[0], y.shape[0]
@@ -122,7 +134,7 @@ class MarquardtDescent(optx.AbstractDescent):
                             jnp.finfo(step_size.dtype).max)
         columns = state.columns
         size = columns.shape[1]
-        if not one_function(columns.shape[0]):
+        if not (self.compact and one_function(*columns.shape)):
             normal = columns.T @ columns + damping * jnp.eye(size, dtype=columns.dtype)
             solution = lx.linear_solve(
                 lx.MatrixLinearOperator(normal, lx.positive_semidefinite_tag),

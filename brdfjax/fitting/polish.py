@@ -43,8 +43,9 @@ run at once and each loop step is a kernel launch, ``side_by_side`` runs them un
 Each step solves its P x P normal equations by Cholesky: with at most 5 parameters they
 are tiny, it is the fastest here, and unlike lineax's default QR it was not seen to
 deadlock on several simulated CPU devices (QR and SVD sat at 0 % CPU for 19 minutes). On
-at most `brdfjax.fitting.marquardt.ONE_FUNCTION_POINTS` points the factorisation is
-unrolled and LM's whole loop compiles as one function (`brdfjax.fitting.marquardt`).
+a small problem (`brdfjax.fitting.marquardt.one_function`: the five-parameter model on up
+to 256 points) the factorisation is unrolled and LM's whole loop compiles as one function
+(`brdfjax.fitting.marquardt`).
 """
 
 from __future__ import annotations
@@ -158,7 +159,8 @@ def _levenberg_marquardt(starts, skipped, prob, bounds, max_steps, scaled=True, 
     from brdfjax.fitting.marquardt import MarquardtDescent, ScaledLevenbergMarquardt
 
     tol = TOLERANCE[jnp.dtype(starts.dtype)]
-    solver = ScaledLevenbergMarquardt(rtol=tol, atol=tol, descent=MarquardtDescent(scaled),
+    descent = MarquardtDescent(scaled, compact=not side_by_side)
+    solver = ScaledLevenbergMarquardt(rtol=tol, atol=tol, descent=descent,
                                       cap=cap)
 
     def run(u0):
