@@ -28,19 +28,20 @@ Torrance-Sparrow on a 02aeroglaze run ran to its 1000-step cap).
 
 On a small problem every step is written so that XLA:CPU compiles LM's whole loop as one
 function (its small-while-loop pass, which `brdfjax` opens to loops of any size): the
-products with the Jacobian as sums of columns, the Gram matrix's upper triangle as one
-reduction and the normal equations solved by an unrolled Cholesky factorisation, because a
-LAPACK call or an operation handed to XLA's YNNPACK library keeps the loop as it is, one
-dispatched kernel per operation, about 140 per step. An LM step of the five-parameter
-model on 64 points then takes about half the time. "Small" is a Gram reduction of at most
-`ONE_FUNCTION_SIZE` elements (points x P (P + 1) / 2): beyond it jaxlib 0.10's XLA hands
-that reduction to YNNPACK (measured: at 256 points for 6 parameters, 192 for 7, 128 for 8,
-none up to 256 for the five-parameter model), and the loop would stay kernels with the
-slower unrolled step (ggx+ggx on 192 padded points: 65 against 39 ms per polish). On more
-points the kernels win anyway: the one function's code is slower per point (the
-five-parameter model's polish on 512 and 716 points took 10-16 ms as one function against
-7-13 ms as kernels). There, and for starts side by side (``compact``), the step keeps its
-matrix products and LAPACK's solve (`BENCHMARKS.md`, section cube).
+products with the Jacobian as sums of its rows (it is held transposed), the Gram matrix's
+upper triangle as one reduction and the normal equations solved by an unrolled Cholesky
+factorisation, because a LAPACK call or an operation handed to XLA's YNNPACK library keeps
+the loop as it is, one dispatched kernel per operation, about 140 per step. An LM step of
+the five-parameter model on 64 points then takes about half the time. "Small" is a Gram
+reduction of at most `ONE_FUNCTION_SIZE` elements (points x P (P + 1) / 2): beyond it
+jaxlib 0.10's XLA hands that reduction to YNNPACK (measured: at 256 points for 6
+parameters, 192 for 7, 128 for 8, none up to 256 for the five-parameter model), and the
+loop would stay kernels with the slower unrolled step (ggx+ggx on 192 padded points: 65
+against 39 ms per polish). On more points the kernels win anyway: the one function's code
+is slower per point (the five-parameter model's polish on 512 and 716 points took 10-16 ms
+as one function against 7-13 ms as kernels). There, and for starts side by side
+(``compact``), the step keeps its matrix products and LAPACK's solve (`BENCHMARKS.md`,
+section cube).
 """
 
 from __future__ import annotations
@@ -68,18 +69,20 @@ def one_function(points: int, parameters: int) -> bool:
 
 
 def jacobian_product(jacobian, tangent):
-    """``jacobian @ tangent``; on a small problem as a sum of the columns (module
-    docstring), which leaves XLA no matrix product to hand to a library."""
-    if not one_function(*jacobian.shape):
-        return jacobian @ tangent
-    return sum(jacobian[:, k] * tangent[k] for k in range(jacobian.shape[1]))
+    """``J @ tangent`` from the transposed Jacobian ``jacobian`` (P, N); on a small problem as
+    a sum of rows (module docstring), which leaves XLA no matrix product to hand to a
+    library."""
+    if not one_function(jacobian.shape[1], jacobian.shape[0]):
+        return tangent @ jacobian
+    return sum(jacobian[k] * tangent[k] for k in range(jacobian.shape[0]))
 
 
 class _Linearised(eqx.Module):
-    """The residuals, the Jacobian with each column divided by its scale, and the scales."""
+    """The residuals, the Jacobian with each column divided by its scale, transposed
+    (P, N), and the scales."""
 
     residual: jax.Array
-    columns: jax.Array
+    rows: jax.Array
     scale: jax.Array
 
 
@@ -96,7 +99,9 @@ class MarquardtDescent(optx.AbstractDescent):
     fifth slower); each trial step is then a P x P Cholesky solve. The residuals of
     `brdfjax.fitting.polish` linearise to their Jacobian itself (a custom JVP rule that
     forms it at every linearised point, rejected steps' included), so those products
-    only read it back.
+    only read it back. It is held transposed, (P, N), as the P products give it row by
+    row: held (N, P), XLA:CPU copied it into the other layout at every accepted step, and
+    the polish of 716 points took 8.8 ms instead of 7.3 (BENCHMARKS.md, section batch).
 
     Attributes:
         scaled: Marquardt's scaling; False (or a traced False) takes ``D = I``: the
@@ -114,17 +119,17 @@ class MarquardtDescent(optx.AbstractDescent):
 
     def init(self, y, f_info_struct) -> _Linearised:
         points, size = f_info_struct.residual.shape[0], y.shape[0]
-        return _Linearised(jnp.zeros(points, y.dtype), jnp.zeros((points, size), y.dtype),
+        return _Linearised(jnp.zeros(points, y.dtype), jnp.zeros((size, points), y.dtype),
                            jnp.ones(size, y.dtype))
 
     def query(self, y, f_info, state) -> _Linearised:
         del state
         basis = jnp.eye(y.shape[0], dtype=y.dtype)
-        jacobian = jax.vmap(f_info.jac.mv, out_axes=1)(basis)
-        largest = jnp.max(jnp.abs(jacobian), axis=0)
+        transposed = jax.vmap(f_info.jac.mv)(basis)  # (P, N): J^T
+        largest = jnp.max(jnp.abs(transposed), axis=1)
         # a zero column takes no step anyway
         scale = jnp.where(self.scaled & (largest > 0), largest, 1.0)
-        return _Linearised(f_info.residual, jacobian / scale, scale)
+        return _Linearised(f_info.residual, transposed / scale[:, None], scale)
 
     def step(self, step_size, state: _Linearised):
         """Solves ``(K^T K + lambda I) w = K^T r`` with ``K = J D^-1``; the step is
@@ -132,22 +137,21 @@ class MarquardtDescent(optx.AbstractDescent):
         eps = jnp.finfo(step_size.dtype).eps
         damping = jnp.where(step_size > eps, 1 / jnp.maximum(step_size, eps),
                             jnp.finfo(step_size.dtype).max)
-        columns = state.columns
-        size = columns.shape[1]
-        if not (self.compact and one_function(*columns.shape)):
-            normal = columns.T @ columns + damping * jnp.eye(size, dtype=columns.dtype)
+        k_t = state.rows  # K^T, (P, N)
+        size = k_t.shape[0]
+        if not (self.compact and one_function(k_t.shape[1], size)):
+            normal = k_t @ k_t.T + damping * jnp.eye(size, dtype=k_t.dtype)
             solution = lx.linear_solve(
                 lx.MatrixLinearOperator(normal, lx.positive_semidefinite_tag),
-                columns.T @ state.residual, lx.Cholesky(), throw=False)
+                k_t @ state.residual, lx.Cholesky(), throw=False)
             return -solution.value / state.scale, optx.RESULTS.promote(solution.result)
         # the Gram matrix's upper triangle in one reduction, and the solve unrolled
         rows, cols = np.triu_indices(size)
         entries = dict(zip(zip(rows.tolist(), cols.tolist()),
-                           jnp.sum(columns[:, rows] * columns[:, cols], axis=0)))
+                           jnp.sum(k_t[rows] * k_t[cols], axis=1)))
         normal = [[entries[min(i, j), max(i, j)] + (damping if i == j else 0.0)
                    for j in range(size)] for i in range(size)]
-        solution, _ = cholesky_solve(normal, list(jnp.sum(columns * state.residual[:, None],
-                                                          axis=0)))
+        solution, _ = cholesky_solve(normal, list(jnp.sum(k_t * state.residual, axis=1)))
         return -jnp.stack(solution) / state.scale, optx.RESULTS.successful
 
 

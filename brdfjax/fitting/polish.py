@@ -101,7 +101,7 @@ def _free_residuals(u, args):
     intermediate array of the model, which XLA copies at each step's accept-or-reject
     branch (about 60 copies for the five-parameter model). With the Jacobian formed in
     this custom JVP rule (P products with the basis, as linearising did), the state holds
-    one N x P matrix.
+    one matrix, the Jacobian transposed (P x N: `brdfjax.fitting.marquardt.jacobian_product`).
     """
     prob, bounds = args
     return residuals(from_free(u, bounds), prob)
@@ -117,7 +117,7 @@ def _free_residuals_jvp(primals, tangents):
 
         basis = jnp.eye(u.shape[0], dtype=u.dtype)
         value, jacobian = jax.vmap(lambda e: jax.jvp(lambda v: _free_residuals.fun(v, args),
-                                                     (u,), (e,)), out_axes=(None, 1))(basis)
+                                                     (u,), (e,)), out_axes=(None, 0))(basis)
         out = jacobian_product(jacobian, tangent)
     leaves, structure = jax.tree.flatten(args)
     moved = jax.tree.leaves(args_tangent, is_leaf=_is_zero)
