@@ -326,7 +326,9 @@ def test_noisy_cement_reaches_the_best_fit_of_a_long_search():
     Fresnel-free start only by a long search (3 fits of 2048 members x 200 generations and
     64 starts). START, that search's best parameters, is a regression pin of where the basin
     is; the E there is not: SciPy's least_squares on the transcription, from the same start
-    in the same box, gives it independently (5.8967110e-4)."""
+    in the same box, gives it independently (5.8967110e-4). The default fit reaches it from
+    at least 28 of the seeds 0-29 (29 since the search's scoring changed, seed 3 not; 29
+    before, seed 19 not: a search's seed picks its path, so one seed pins nothing)."""
     from scipy.optimize import least_squares
 
     data = paper_sample("cement", noise=0.025, seed=1003).at_incidences([10, 30, 45, 60])
@@ -340,7 +342,8 @@ def test_noisy_cement_reaches_the_best_fit_of_a_long_search():
     best = fit(data, "lm", start=start)
     assert best.error == pytest.approx(e_scipy, rel=1e-6)
     np.testing.assert_allclose(best.vector, reference.x, rtol=1e-5)
-    assert fit(data, seed=3).error <= e_scipy * (1 + 1e-6)
+    reached = [fit(data, seed=seed).error <= e_scipy * (1 + 1e-6) for seed in range(30)]
+    assert sum(reached) >= 28, reached
 
 
 def test_bound_transforms_round_trip():

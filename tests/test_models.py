@@ -231,6 +231,41 @@ def test_linear_solve_keeps_a_narrow_scale(white_paint, name):
         assert float(e) == pytest.approx(e_direct, rel=1e-9, abs=1e-14)
 
 
+# Float32 scoring turns a lobe that vanishes at every point into infinity for these models
+# (Beckmann below alpha 0.008, Torrance-Sparrow above c 160 on EC1, where float64 gives
+# the diffuse-only E): known, not yet fixed.
+VANISHING_LOBE = {"beckmann", "torrance-sparrow"}
+
+
+@pytest.mark.parametrize("name", [
+    pytest.param(name, marks=pytest.mark.xfail(strict=True, reason="vanishing lobe in float32"))
+    if name in VANISHING_LOBE else name for name in NAMES])
+def test_float32_search_scores_as_float64_on_a_black_coating(name):
+    """The genetic search scores members in float32 (`brdfjax.fitting.evolve`): on a real black
+    coating (EC1, 120 points), at 200 random members of the box whose float64 E is below
+    E at zero, float32 gives the same E to 1e-5 of E at zero. Column products taken
+    before scaling underflowed for the five-parameter model with b near its upper bound,
+    scored infinite where float64 gives about 0.7 of E at zero."""
+    from conftest import DATA
+
+    from brdfjax.fitting.evolve import score_population
+
+    model = get(name)
+    bounds = default_bounds(model)
+    prob = problem(brdfjax.load(DATA / "real" / "uaz-loft-rt300s" / "raw" /
+                                "ANOPLATE_AnoBlack_EC1_Alum6061_v1o0_20251115.xls"), model)
+    z = np.random.default_rng(0).uniform(size=(200, model.size))
+    _, wide = jax.jit(score_population)(z, prob, bounds)
+    narrow = jax.tree.map(lambda x: x.astype(np.float32) if jnp.issubdtype(x.dtype, jnp.floating)
+                          else x, (z, prob, bounds))
+    _, single = jax.jit(score_population)(*narrow)
+    at_zero = float(np.sum(prob.weight * prob.target**2))
+    fitting = np.asarray(wide) < at_zero
+    assert fitting.sum() > 150
+    gap = np.abs(np.asarray(single, float) - np.asarray(wide))[fitting] / at_zero
+    assert np.max(gap) < 1e-5
+
+
 def scales_of_pairs(model) -> list[int]:
     """Positions of the scales that are sums of two weights (`Model.scale_sums`): GGX's ks,
     RPV's rho0, and each GGX part's in a sum."""
