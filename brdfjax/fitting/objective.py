@@ -240,10 +240,11 @@ def solve_linear(params, prob: Problem, bounds: Bounds):
     neither overflows nor loses precision in float32. The scale only has to keep the
     products within float32's range, and every sum takes one factor of each product
     already scaled, so that two tiny columns never multiply unscaled. Unscaled squares
-    would underflow to 0 for 16 % of random members on a black coating (``b`` near its
-    upper bound), scored infinite where float64 gives 0.7. Scaling the column itself
-    before its products, and by its largest magnitude over every point, made the genetic
-    search of 716 points a fifth slower (BENCHMARKS.md, section batch).
+    underflowed for 16 % of random five-parameter members on a real black coating (EC1;
+    ``b`` near its upper bound), scored infinite where float64 gives about 0.7 of E at
+    zero (`tests/test_models.py`). Scaling the column itself before its products, and by
+    its largest magnitude over every point, made the genetic search of 716 points a fifth
+    slower (BENCHMARKS.md, section batch).
 
     Args:
         params: a parameter vector (P,) whose nonlinear entries are used.
