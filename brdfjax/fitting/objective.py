@@ -220,11 +220,6 @@ def error(params, prob: Problem) -> jax.Array:
                                   - prob.target) ** 2)
 
 
-# `solve_linear` measures each column against its largest magnitude among every
-# PEAK_STRIDE-th point: any scale within float32's range would do (its docstring).
-PEAK_STRIDE = 8
-
-
 def solve_linear(params, prob: Problem, bounds: Bounds):
     """The parameters that enter f_r linearly, at their best within the bounds, and E.
 
@@ -234,17 +229,18 @@ def solve_linear(params, prob: Problem, bounds: Bounds):
     (`box_least_squares`: variable projection, Golub and Pereyra 1973). E follows from the
     weighted sums of the column products, without a second pass over the points.
 
-    Each column is measured in units of its largest magnitude among every `PEAK_STRIDE`-th
-    point (the model is ``sum x_k s_k`` with ``x_k = c_k unit_k peak_k``), so that a huge
-    ``exp(b ...)`` balanced by a tiny kb (the five-parameter model on real black coatings)
-    neither overflows nor loses precision in float32. The scale only has to keep the
-    products within float32's range, and every sum takes one factor of each product
-    already scaled, so that two tiny columns never multiply unscaled. Unscaled squares
-    underflowed for 16 % of random five-parameter members on a real black coating (EC1;
-    ``b`` near its upper bound), scored infinite where float64 gives about 0.7 of E at
-    zero (`tests/test_models.py`). Scaling the column itself before its products, and by
-    its largest magnitude over every point, made the genetic search of 716 points a fifth
-    slower (BENCHMARKS.md, section batch).
+    Each column is measured in units of its largest magnitude (the model is
+    ``sum x_k s_k`` with ``x_k = c_k unit_k peak_k``), so that a huge ``exp(b ...)``
+    balanced by a tiny kb (the five-parameter model on real black coatings) neither
+    overflows nor loses precision in float32. Every sum takes one factor of each product
+    already scaled and is scaled once more after, so that two tiny columns never multiply
+    unscaled: unscaled squares underflowed for 16 % of random five-parameter members on a
+    real black coating (EC1; ``b`` near its upper bound), scored infinite where float64
+    gives about 0.7 of E at zero (`tests/test_models.py`). A scaled copy of each column
+    made the genetic search of 716 points a fifth slower (BENCHMARKS.md, section batch). The
+    largest magnitude among every 8th point only, tried as a cheaper scale, failed on
+    narrow lobes: Beckmann's at alpha 0.002 is 1e-167 there against 5.8e3 at its peak, and
+    its scaled products overflowed even float64.
 
     Args:
         params: a parameter vector (P,) whose nonlinear entries are used.
@@ -260,7 +256,7 @@ def solve_linear(params, prob: Problem, bounds: Bounds):
     raw = [column * c for column in columns]
     inverse, to_x = [], []
     for s, unit in zip(raw, units):
-        peak = jnp.max(jnp.abs(s[::PEAK_STRIDE]))
+        peak = jnp.max(jnp.abs(s))
         peak = jnp.where(peak > 0, peak, 1.0)
         inverse.append(1 / peak)
         to_x.append(unit * peak)
