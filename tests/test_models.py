@@ -243,7 +243,7 @@ def test_float32_search_scores_as_float64_on_a_black_coating(name):
     members)."""
     from conftest import DATA
 
-    from brdfjax.fitting.evolve import score_population
+    from brdfjax.fitting.evolve import in_precision, score_population
 
     model = get(name)
     bounds = default_bounds(model)
@@ -251,9 +251,7 @@ def test_float32_search_scores_as_float64_on_a_black_coating(name):
                                 "ANOPLATE_AnoBlack_EC1_Alum6061_v1o0_20251115.xls"), model)
     z = np.random.default_rng(0).uniform(size=(200, model.size))
     _, wide = jax.jit(score_population)(z, prob, bounds)
-    narrow = jax.tree.map(lambda x: x.astype(np.float32) if jnp.issubdtype(x.dtype, jnp.floating)
-                          else x, (z, prob, bounds))
-    _, single = jax.jit(score_population)(*narrow)
+    _, single = jax.jit(score_population)(*in_precision((z, prob, bounds), np.float32))
     assert np.all(np.isfinite(wide))
     at_zero = float(np.sum(prob.weight * prob.target**2))
     fitting = np.asarray(wide) < at_zero

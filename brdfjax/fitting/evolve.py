@@ -140,9 +140,7 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
     elif not jax.dtypes.issubdtype(jnp.result_type(key), jax.dtypes.prng_key):
         key = jax.random.wrap_key_data(key)  # a legacy uint32 key of jax.random.PRNGKey
     out, dtype = prob.target.dtype, jnp.dtype(precision)
-    prob, bounds = jax.tree.map(
-        lambda x: x.astype(dtype) if jnp.issubdtype(x.dtype, jnp.floating) else x,
-        (prob, bounds))
+    prob, bounds = in_precision((prob, bounds), dtype)
     if prob.model.searched_size <= 1:
         return scan(prob, bounds, population_size, islands, max_generations, out)
     config = jax.tree.map(lambda x: jnp.asarray(x, dtype), config)
@@ -227,6 +225,13 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
     return EvolveResult(population=z.reshape(-1, dimensions).astype(out),
                         errors=errors.reshape(-1).astype(out), history=history.astype(out),
                         generations=generations)
+
+
+def in_precision(tree, dtype):
+    """``tree`` with every floating-point leaf in ``dtype`` (the search's arithmetic) and the
+    others (a model's flags, integer arrays) as they are."""
+    return jax.tree.map(
+        lambda x: x.astype(dtype) if jnp.issubdtype(x.dtype, jnp.floating) else x, tree)
 
 
 def ascending(values) -> jax.Array:
