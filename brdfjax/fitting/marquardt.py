@@ -82,7 +82,7 @@ class _Linearised(eqx.Module):
     (P, N), and the scales."""
 
     residual: jax.Array
-    rows: jax.Array
+    transposed: jax.Array
     scale: jax.Array
 
 
@@ -137,7 +137,7 @@ class MarquardtDescent(optx.AbstractDescent):
         eps = jnp.finfo(step_size.dtype).eps
         damping = jnp.where(step_size > eps, 1 / jnp.maximum(step_size, eps),
                             jnp.finfo(step_size.dtype).max)
-        k_t = state.rows  # K^T, (P, N)
+        k_t = state.transposed  # K^T, (P, N)
         size = k_t.shape[0]
         if not (self.compact and one_function(k_t.shape[1], size)):
             normal = k_t @ k_t.T + damping * jnp.eye(size, dtype=k_t.dtype)
