@@ -16,7 +16,7 @@ from transcription import generic_points
 
 import brdfjax
 from brdfjax.data.measurements import Measurements
-from brdfjax.fitting.bounds import default_bounds, from_unit
+from brdfjax.fitting.bounds import default_bounds, from_unit, to_unit
 from brdfjax.fitting.objective import error, problem, solve_linear
 from brdfjax.models import available, get
 from brdfjax.models.hemispherical import reflectance
@@ -258,6 +258,31 @@ def test_float32_search_scores_as_float64_on_a_black_coating(name):
     assert fitting.sum() > 150
     gap = np.abs(np.asarray(single, float) - np.asarray(wide))[fitting] / at_zero
     assert np.max(gap) < 1e-5
+
+
+def test_float32_search_scores_a_bright_sample_with_b_near_its_bound():
+    """The same float32 scoring on the paper's polyimide (bright: weights about 2e-4) with b
+    in the top 3 % of its box: 300 members score as float64 does to 1e-4 of E at zero. With
+    the lobe per unit ``exp(max(b, 0))`` the column fell to 1e-35 where ``(1 - cos g)^a``
+    is small everywhere, its products with the weights underflowed, and a member whose
+    float64 E is 0.22 of E at zero once solved scored E = 0 (an independent review)."""
+    from brdfjax.data.synthetic import paper_sample
+    from brdfjax.fitting.evolve import in_precision, score_population
+
+    model = get("five")
+    bounds = default_bounds(model)
+    prob = problem(paper_sample("polyimide"), model)
+    z = np.random.default_rng(0).uniform(size=(300, 5))
+    z[:, 3] = np.random.default_rng(1).uniform(0.97, 1.0, size=300)  # b from about 60 to 80
+    z[0] = to_unit(jnp.array([1.66e-3, 0.172, 10.4, 79.3, 4.3e-8]), bounds)  # the reviewed one
+    _, wide = jax.jit(score_population)(z, prob, bounds)
+    _, single = jax.jit(score_population)(*in_precision((z, prob, bounds), np.float32))
+    at_zero = float(np.sum(prob.weight * prob.target**2))
+    wide, single = np.asarray(wide), np.asarray(single, float)
+    assert np.all(np.isfinite(wide)) and wide[0] > 0.1 * at_zero  # a poor member
+    fitting = wide < at_zero
+    assert fitting.sum() > 100
+    assert np.max(np.abs(single - wide)[fitting]) / at_zero < 1e-4
 
 
 def scales_of_pairs(model) -> list[int]:

@@ -233,12 +233,19 @@ def solve_linear(params, prob: Problem, bounds: Bounds):
     ``sum x_k s_k`` with ``x_k = c_k unit_k peak_k``), so that a huge ``exp(b ...)``
     balanced by a tiny kb (the five-parameter model on real black coatings) neither
     overflows nor loses precision in float32. Every sum takes one factor of each product
-    already scaled and is scaled once more after, so that two tiny columns never multiply
-    unscaled: unscaled squares underflowed for 16 % of random five-parameter members on a
-    real black coating (EC1; ``b`` near its upper bound), scored infinite where float64
-    gives about 0.7 of E at zero (`tests/test_models.py`). A scaled copy of each column
-    made the genetic search of 716 points a fifth slower (BENCHMARKS.md, section batch). The
-    largest magnitude among every 8th point only, tried as a cheaper scale, failed on
+    already scaled (with the weight) and is scaled once more after, so that two tiny
+    columns never multiply unscaled: unscaled squares underflowed for 16 % of random
+    five-parameter members on a real black coating (EC1; ``b`` near its upper bound),
+    scored infinite where float64 gives about 0.7 of E at zero (`tests/test_models.py`).
+    The other factor is the column itself, so a model's columns (with their `units`) must
+    keep the weight times their peak above float32's smallest normal number (1.2e-38;
+    XLA:CPU flushes smaller products to zero): the five-parameter model's lobe is taken
+    per unit ``exp(max(b - 40, 0))`` for that (`brdfjax.models.five.column_offset`). A
+    scaled copy of each column made the genetic search of 716 points a fifth slower
+    (BENCHMARKS.md, section batch), and so did forming each product from two scaled
+    factors (12.0-13.1 against 9.6-10.4 ms, the best of six on one thread, when the column
+    contract was set).
+    The largest magnitude among every 8th point only, tried as a cheaper scale, failed on
     narrow lobes: Beckmann's at alpha 0.002 is 1e-167 there against 5.8e3 at its peak, and
     its scaled products overflowed even float64.
 

@@ -151,7 +151,10 @@ class Model:
             ``(columns, units)``: K arrays with the geometry's shape, and K scalars. The
             coefficients ``c_k`` are those of `coefficient_bounds` and `assemble`;
             ``units`` lets a model return a rescaled column (one that would overflow
-            otherwise), 1 elsewhere.
+            otherwise), 1 elsewhere. The genetic search solves in float32 and multiplies
+            each column by the points' weights before scaling it: a column's peak should
+            stay well within float32's range, 1e-20 to 1e20 (`brdfjax.fitting.objective
+            .solve_linear`).
         """
         raise NotImplementedError
 

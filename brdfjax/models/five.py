@@ -65,8 +65,7 @@ PAPER_ERRORS_PERCENT = {"white_paint": 4.17, "cement": 5.98, "khaki_paint": 0.69
 def lobe(kr, a, b, geometry: Scene, offset=0.0):
     """The specular term of Eq. (5) per unit kb, ``D R0 G / cos(tr)``, times ``exp(-offset)``.
 
-    An ``offset`` of ``max(b, 0)`` keeps the lobe finite however large b is
-    (``R0 <= exp(max(b, 0))``).
+    With `column_offset` the lobe stays finite however large b is.
     """
     kr2 = kr * kr
     cos_alpha = geometry.cos_alpha
@@ -75,6 +74,23 @@ def lobe(kr, a, b, geometry: Scene, offset=0.0):
     power = jnp.where(geometry.is_backscatter, 0.0,
                       jnp.exp(a * geometry.log_one_minus_cos_gamma))
     return facets * jnp.exp(b * power - offset) * geometry.shadowing
+
+
+# The linear solve (`brdfjax.fitting.objective.solve_linear`) takes the lobe per unit
+# ``exp(offset)``. ``R0 = exp(b (1 - cos g)^a)`` lies between 1 and ``exp(b)`` for b > 0, so
+# ``offset = max(b - COLUMN_EXPONENT, 0)`` keeps ``R0 exp(-offset)`` within ``exp(+-40)``
+# (about 1e17) for b up to 80 (its default bound); for b < 0, ``R0 <= 1``, and where it is
+# tiny so is the lobe's share of the BRDF. The genetic search multiplies the column by the
+# points' weights in float32 before scaling it, where a column of 1e-35 underflowed (XLA:CPU
+# flushes subnormals to zero). An offset of ``max(b, 0)`` did that at b near 80 wherever
+# (1 - cos g)^a is small at every point (a bright sample at large a): a member whose E is
+# 0.22 of E at zero scored 0 (found by an independent review; `tests/test_models.py`).
+COLUMN_EXPONENT = 40.0
+
+
+def column_offset(b):
+    """The exponent ``offset`` of the lobe's unit in the linear solve (see above)."""
+    return jnp.maximum(b - COLUMN_EXPONENT, 0.0)
 
 
 @dataclass(frozen=True)
@@ -117,7 +133,7 @@ class FiveParameter(Model):
 
     def columns(self, params, geometry, bounds):
         kr, a, b = params[1], params[2], params[3]
-        offset = jnp.maximum(b, 0.0)
+        offset = column_offset(b)
         return ([lobe(kr, a, b, geometry, offset), jnp.ones_like(geometry.cos_theta_r)],
                 [jnp.exp(offset), 1.0])
 
