@@ -273,7 +273,7 @@ def test_float32_search_scores_a_bright_sample_with_b_near_its_bound():
     bounds = default_bounds(model)
     prob = problem(paper_sample("polyimide"), model)
     z = np.random.default_rng(0).uniform(size=(300, 5))
-    z[:, 3] = np.random.default_rng(1).uniform(0.97, 1.0, size=300)  # b from about 60 to 80
+    z[:, 3] = np.random.default_rng(1).uniform(0.97, 1.0, size=300)  # b from 58 to 80
     z[0] = to_unit(jnp.array([1.66e-3, 0.172, 10.4, 79.3, 4.3e-8]), bounds)  # the reviewed one
     _, wide = jax.jit(score_population)(z, prob, bounds)
     _, single = jax.jit(score_population)(*in_precision((z, prob, bounds), np.float32))

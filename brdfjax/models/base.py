@@ -152,9 +152,9 @@ class Model:
             coefficients ``c_k`` are those of `coefficient_bounds` and `assemble`;
             ``units`` lets a model return a rescaled column (one that would overflow
             otherwise), 1 elsewhere. The genetic search solves in float32 and multiplies
-            each column by the points' weights before scaling it: a column's peak should
-            stay well within float32's range, 1e-20 to 1e20 (`brdfjax.fitting.objective
-            .solve_linear`).
+            each column by the points' weights before scaling it: where a column matters,
+            its peak should stay well within float32's range, about 1e-20 to 1e20
+            (`brdfjax.fitting.objective.solve_linear`).
         """
         raise NotImplementedError
 
