@@ -102,14 +102,16 @@ def stage(function=None, *, static_argnames: tuple[str, ...] = ()):
 
     Called with tracers (inside another jit or vmap) or with the caches off, a stage is
     ``jax.jit(function, static_argnames=...)`` called with its defaults filled in.
+    ``stage_function.compile(*args, **kwargs)`` compiles it for such arguments without
+    running it, so that a later call in any thread runs at once (compiling ahead where
+    running would not be safe: XLA's LAPACK calls can deadlock beside another thread's).
     """
     if function is None:
         return functools.partial(stage, static_argnames=static_argnames)
     jitted = jax.jit(function, static_argnames=static_argnames)
     signature = inspect.signature(function)
 
-    @functools.wraps(function)
-    def call(*args, **kwargs):
+    def dispatch(args, kwargs, run: bool):
         # Defaults filled in: jit keys its compilations on how arguments are spelled, and
         # two calls of one shape (one passing a default, one leaving it out) would compile
         # twice (the fit's polish and the Laplace approximation's).
@@ -117,10 +119,15 @@ def stage(function=None, *, static_argnames: tuple[str, ...] = ()):
         bound.apply_defaults()
         leaves = jax.tree.leaves(bound.arguments)
         if _directory is None or any(isinstance(x, jax.core.Tracer) for x in leaves):
-            return jitted(*bound.args, **bound.kwargs)
+            return _run_or_compile(jitted, run, *bound.args, **bound.kwargs)
         static = {name: bound.arguments.pop(name) for name in static_argnames}
-        return _exported(function, jitted, static, bound.args, bound.kwargs)
+        return _exported(function, jitted, static, bound.args, bound.kwargs, run)
 
+    @functools.wraps(function)
+    def call(*args, **kwargs):
+        return dispatch(args, kwargs, run=True)
+
+    call.compile = lambda *args, **kwargs: dispatch(args, kwargs, run=False)
     call._cache_size = jitted._cache_size  # compilations so far, as jax.jit reports
     return call
 
@@ -172,7 +179,7 @@ def _load_once(path: Path, build, name: str) -> tuple | None:
     return _loaded[path]
 
 
-def _exported(function, jitted, static: dict, args: tuple, kwargs: dict):
+def _exported(function, jitted, static: dict, args: tuple, kwargs: dict, run: bool):
     leaves, in_tree = jax.tree.flatten((args, kwargs))
     # Typed PRNG keys cannot cross the export boundary: pass their raw data and rewrap.
     impls = [jax.random.key_impl(x) if _is_key(x) else None for x in leaves]
@@ -202,9 +209,14 @@ def _exported(function, jitted, static: dict, args: tuple, kwargs: dict):
 
     loaded = _load(path, build, function.__name__)
     if loaded is None:
-        return jitted(*args, **kwargs, **static)
+        return _run_or_compile(jitted, run, *args, **kwargs, **static)
     compiled, tree = loaded
-    return jax.tree.unflatten(tree, compiled(*raw))
+    return jax.tree.unflatten(tree, compiled(*raw)) if run else compiled.lower(*raw).compile()
+
+
+def _run_or_compile(jitted, run: bool, *args, **kwargs):
+    """``jitted(*args, **kwargs)``, or where ``run`` is False its compilation for them."""
+    return jitted(*args, **kwargs) if run else jitted.lower(*args, **kwargs).compile()
 
 
 def _is_key(x) -> bool:

@@ -349,6 +349,29 @@ def fit_discrepancies(sets: list, floor: float, azimuth: bool) -> list[Discrepan
     Returns:
         A `Discrepancy` per set, in order.
     """
+    arrays = _padded_sets(sets)
+    u, _, _ = _fit_hyperparameters(*arrays)
+    u, x, r = (np.asarray(a) for a in (u, *arrays[:2]))
+    dims = x.shape[-1]
+    fitted = []
+    for k, size in enumerate(len(res) for _, res in sets):
+        mean, amplitude, lengths, share, noise = (np.asarray(v) for v in _physical(u[k], dims))
+        fitted.append(Discrepancy(floor, azimuth, float(mean), float(amplitude),
+                                  tuple(float(v) for v in lengths), float(share), float(noise),
+                                  size, u[k], x[k], r[k]))
+    return fitted
+
+
+def compile_discrepancies(sets: list) -> None:
+    """Compile what `fit_discrepancies` of sets of these sizes runs, without running it
+    (only the sets' sizes and feature count matter): another thread may fit meanwhile."""
+    _fit_hyperparameters.compile(*_padded_sets(sets))
+
+
+def _padded_sets(sets: list) -> tuple:
+    """The arguments of `_fit_hyperparameters` for ``sets``: every set padded to one
+    length, the lanes to a multiple of 4 (few compiled batch sizes; the extra lanes repeat
+    the first set), and each set's candidate starts."""
     sizes = [len(r) for _, r in sets]
     if max(sizes) > MAX_POINTS:
         raise ValueError(f"a discrepancy holds at most {MAX_POINTS} points; subsample first")
@@ -368,15 +391,6 @@ def fit_discrepancies(sets: list, floor: float, azimuth: bool) -> list[Discrepan
                                        [_unconstrained(START_INCIDENCE, "incidence"), share],
                                        [_unconstrained(fraction * spread, "noise")]])
                        for scale in START_LENGTHS for fraction in START_NOISE])
-    lanes = -(-len(sets) // 4) * 4  # a multiple of 4: few compiled batch sizes
-    fill = [0] * (lanes - len(sets))  # extra lanes repeat the first set
-    u, _, _ = _fit_hyperparameters(*(jnp.asarray(np.concatenate([a, a[fill]])) for a in (
-        x, r, count, np.array(starts))))
-    u = np.asarray(u)
-    fitted = []
-    for k, size in enumerate(sizes):
-        mean, amplitude, lengths, share, noise = (np.asarray(v) for v in _physical(u[k], dims))
-        fitted.append(Discrepancy(floor, azimuth, float(mean), float(amplitude),
-                                  tuple(float(v) for v in lengths), float(share), float(noise),
-                                  size, u[k], x[k], r[k]))
-    return fitted
+    fill = [0] * (-(-len(sets) // 4) * 4 - len(sets))
+    return tuple(jnp.asarray(np.concatenate([a, a[fill]]))
+                 for a in (x, r, count, np.array(starts)))

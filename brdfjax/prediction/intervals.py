@@ -212,6 +212,20 @@ def corrected_cv_errors(data: Measurements, validations: list) -> list[float]:
                                              interior_only=True)]
 
 
+def compile_corrected_cv_errors(data: Measurements, validation, models: int) -> None:
+    """Compile what `corrected_cv_errors` of ``models`` cross-validations of ``data`` folded
+    as ``validation`` runs, without running it (no LAPACK call, so safe while other
+    threads fit): ``brdfjax models`` so compiles it while the other models fit, instead of
+    after them all (about 2 s of one core's time at the end of the first run)."""
+    from brdfjax.prediction.discrepancy import compile_discrepancies
+
+    masks = [~np.isin(np.arange(len(data)), f.index) for f in validation.folds
+             if f.interior] * models
+    if masks:  # the sets' sizes are what matters: the data stand in for the models' values
+        compile_discrepancies(_training_sets(data, [data.brdf] * len(masks), masks,
+                                             _floor(data)))
+
+
 class _Corrected(NamedTuple):
     """One fold's held-out points predicted by its model corrected by a process fitted to
     the fold's training points: the model's values on all points (N,), the held-out mask,
@@ -311,23 +325,25 @@ def _fit_processes(data: Measurements, values: list, masks: list, floor: float) 
     """One `brdfjax.prediction.discrepancy.Discrepancy` per (model values, training mask), fitted in
     one batched call on at most `brdfjax.prediction.discrepancy.MAX_POINTS` of each mask's
     points."""
-    from brdfjax.prediction.discrepancy import (
-        MAX_POINTS,
-        features,
-        fit_discrepancies,
-        log_residual,
-        subsample,
-    )
+    from brdfjax.prediction.discrepancy import fit_discrepancies
 
-    azimuth = not data.in_plane
-    x = features(data.theta_i, data.theta_r, data.phi_r, azimuth)
+    return fit_discrepancies(_training_sets(data, values, masks, floor), floor,
+                             not data.in_plane)
+
+
+def _training_sets(data: Measurements, values: list, masks: list, floor: float) -> list:
+    """Each process's (features, log residuals) on at most
+    `brdfjax.prediction.discrepancy.MAX_POINTS` of its mask's points."""
+    from brdfjax.prediction.discrepancy import MAX_POINTS, features, log_residual, subsample
+
+    x = features(data.theta_i, data.theta_r, data.phi_r, not data.in_plane)
     sets = []
     for value, mask in zip(values, masks):
         index = np.flatnonzero(mask)
         keep = index[subsample((data.theta_r[index], data.phi_r[index], data.theta_i[index]),
                                MAX_POINTS)]
         sets.append((x[keep], log_residual(data.brdf[keep], value[keep], floor)))
-    return fit_discrepancies(sets, floor, azimuth)
+    return sets
 
 
 @dataclass

@@ -193,7 +193,7 @@ def compare_models(data: Measurements, models=None, *, seed: int = 0,
     from brdfjax.models import get
     from brdfjax.models.hemispherical import reflectance
     from brdfjax.prediction.cross_validation import cross_validate
-    from brdfjax.prediction.intervals import corrected_cv_errors
+    from brdfjax.prediction.intervals import compile_corrected_cv_errors, corrected_cv_errors
 
     def score(name: str) -> ModelScore:
         validation = cross_validate(data, name, seed=seed, full_fit=True)  # one batched call
@@ -209,8 +209,12 @@ def compare_models(data: Measurements, models=None, *, seed: int = 0,
     with (ThreadPoolExecutor(max_workers=os.cpu_count()) as pool,
           tqdm(total=len(names), desc="models", unit="model", disable=not progress) as bar):
         running = [pool.submit(score, name) for name in names]
-        for _ in as_completed(running):
+        ahead = discrepancy == "gp"  # compiled here while the other models fit
+        for job in as_completed(running):
             bar.update()
+            if ahead and job.exception() is None:
+                compile_corrected_cv_errors(data, job.result().validation, len(names))
+                ahead = False
         scores = [job.result() for job in running]
     if discrepancy == "gp":  # every model's processes in one call, in this thread
         errors = corrected_cv_errors(data, [s.validation for s in scores])
