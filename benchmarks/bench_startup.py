@@ -76,12 +76,17 @@ def main() -> None:
     trees = {"now": REPO, **({"before": args.before.resolve()} if args.before else {})}
     rows = []
     for name, command in runs.items():
-        for label, tree in trees.items():
-            measured = [first_run(command, tree, folder) for _ in range(args.repeats)]
-            walls = [wall for wall, _ in measured]
+        # The trees alternate run by run: this machine's speed drifts by more than most
+        # changes within an hour, and one tree's runs all in a row would measure the drift.
+        measured = {label: [] for label in trees}
+        for _ in range(args.repeats):
+            for label, tree in trees.items():
+                measured[label].append(first_run(command, tree, folder))
+        for label, results in measured.items():
+            walls = [wall for wall, _ in results]
             rows.append(f"| `brdfjax {name}` | {label} | {np.median(walls):.1f} | "
                         f"{min(walls):.1f}-{max(walls):.1f} | "
-                        f"{max(load for _, load in measured):.1f} | {TARGETS[name]:.0f} |")
+                        f"{max(load for _, load in results):.1f} | {TARGETS[name]:.0f} |")
     named = ", ".join(f"`brdfjax {name}`" for name in runs)
     text = (f"## Start-up: a new user's first {named if args.only else 'commands'} "
             "(empty cache)\n\n"
