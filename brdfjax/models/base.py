@@ -130,8 +130,10 @@ class Model:
         """The parameter-free terms at broadcast angle arrays (radians).
 
         Returns a named tuple of arrays of one shape with at least a ``cos_theta_r`` field
-        (the projection of Eq. 6). ``in_plane`` is True when every ``phi_r`` is 0 or pi,
-        where a model may use exact closed forms.
+        (the projection of Eq. 6), each value computed from its own point's angles alone
+        (`brdfjax.fitting.objective.prepare` pads the points and cuts the copies off).
+        ``in_plane`` is True when every ``phi_r`` is 0 or pi, where a model may use exact
+        closed forms.
         """
         raise NotImplementedError
 
