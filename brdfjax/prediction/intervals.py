@@ -219,8 +219,7 @@ def compile_corrected_cv_errors(data: Measurements, validation, models: int) -> 
     after them all (about 2 s of one core's time at the end of the first run)."""
     from brdfjax.prediction.discrepancy import compile_discrepancies
 
-    masks = [~np.isin(np.arange(len(data)), f.index) for f in validation.folds
-             if f.interior] * models
+    masks = [~held for held in _held_out(data, validation, interior_only=True)[1]] * models
     if masks:  # the sets' sizes are what matters: the data stand in for the models' values
         compile_discrepancies(_training_sets(data, [data.brdf] * len(masks), masks,
                                              _floor(data)))
@@ -251,8 +250,7 @@ def _corrected_folds(data: Measurements, validations: list, floor: float, *,
     for validation, fitted in validations:
         model = get(validation.model)
         geometry = prepare(data, model)
-        folds = [f for f in validation.folds if f.interior or not interior_only]
-        held = [np.isin(np.arange(len(data)), f.index) for f in folds]
+        folds, held = _held_out(data, validation, interior_only)
         vectors = [f.params for f in folds] + ([] if interior_only else [fitted])
         values += [np.asarray(brdf_values(np.asarray(v, float), geometry, model))
                    for v in vectors]
@@ -270,6 +268,13 @@ def _corrected_folds(data: Measurements, validations: list, floor: float, *,
                                         process.correct(value[mask], mu)))
         out.append((corrected, None if interior_only else sets[-1][1]))
     return out
+
+
+def _held_out(data: Measurements, validation, interior_only: bool) -> tuple[list, list]:
+    """The folds of ``validation`` that get a process (the interior ones alone with
+    ``interior_only``) and each one's held-out points as a mask over ``data``."""
+    folds = [f for f in validation.folds if f.interior or not interior_only]
+    return folds, [np.isin(np.arange(len(data)), f.index) for f in folds]
 
 
 def _floor(data: Measurements) -> float:
