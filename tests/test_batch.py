@@ -381,9 +381,10 @@ def test_interrupted_batch_resumes_without_refitting_or_duplicates(reference, ca
     assert crashed.returncode == status
     after_crash = count_rows(out)
     assert 0 < after_crash < total, "the run ended before it was killed"
+    fitted = sum(r["status"] != "failed" for r in rows(out.read_text()))  # the broken file's
     finished = subprocess.run(command, check=False, env=environment, capture_output=True,
-                              text=True, timeout=300)
-    assert f"{after_crash} of {total} inputs already done" in finished.stderr
+                              text=True, timeout=300)  # row, if written, is tried again
+    assert f"{fitted} of {total} inputs already done" in finished.stderr
     assert finished.returncode == 1  # the broken file, still reported
     final = out.read_text()
     assert final == reference[0]  # same rows, same numbers, same order: nothing duplicated
@@ -459,11 +460,46 @@ def test_a_rerun_with_other_options_refuses_and_keeps_the_rows(tmp_path, capsys)
     assert "bounds b: -150:80 there, -10:10 here" in said, said
     assert "already done" not in said and out.read_text() == written
     assert main([*command, "--model", "ggx"]) == 1  # another model: other columns too
+    assert "model: five there, ggx here" in capsys.readouterr().err  # named, as the seed
     assert main([*command, "--seed", "0"]) == 0  # the default, spelled out
     assert "2 of 2 inputs already done" in capsys.readouterr().err
     out.unlink()
     assert main([*command, "--seed", "5", "--bound", "b=-10:10"]) == 0
     assert all(-10 <= float(r["b"]) <= 10 for r in rows(out.read_text()))
+
+
+def test_a_failed_input_is_tried_again_and_a_refused_option_leaves_nothing(tmp_path,
+                                                                          capsys):
+    """A rerun fits again the inputs that failed (the file may have been fixed), replacing
+    their rows in place; a run that the fit refuses before any row leaves no file."""
+    from brdfjax.cli import main
+
+    save(synthetic(0, points=40), tmp_path / "sample_0.csv")
+    good = (tmp_path / "sample_0.csv").read_text()
+    lines = good.splitlines()
+    first = next(k for k, line in enumerate(lines) if line[:1].isdigit())
+    broken = lines[first].split(",")
+    lines[first] = ",".join([*broken[:3], "abc", *broken[4:]])
+    (tmp_path / "sample_1.csv").write_text("\n".join(lines) + "\n")
+    out = tmp_path / "results.csv"
+    command = ["batch", str(tmp_path), "--out", str(out), *CLI_SMALL]
+    assert main(command) == 1
+    assert [r["status"] for r in rows(out.read_text())] == ["converged", "failed"]
+    capsys.readouterr()
+    (tmp_path / "sample_1.csv").write_text(good)
+    assert main(command) == 0
+    assert "1 of 2 inputs already done; fitting the other 1 (1 that failed before, tried " \
+           "again)" in capsys.readouterr().err
+    again = rows(out.read_text())
+    assert [r["file"] for r in again] == [str(tmp_path / f"sample_{k}.csv") for k in (0, 1)]
+    assert [r["status"] for r in again] == ["converged", "converged"]
+    assert again[1]["error"] == again[0]["error"]  # the same data, the same fit
+    refused = tmp_path / "refused.csv"
+    assert main(["batch", str(tmp_path / "sample_0.csv"), "--out", str(refused),
+                 "--population-size", "12"]) == 1
+    assert "not a multiple of islands" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "results.csv", "results.csv.options.json", "sample_0.csv", "sample_1.csv"]
 
 
 def test_verbose_says_which_stage_compiled_for_how_long(tmp_path, monkeypatch, capsys):

@@ -255,6 +255,11 @@ def test_numerical_warnings_become_one_line_each(monkeypatch, capsys):
     ["batch", "{data}", "--out", "{missing}/results.csv"],
     ["batch", "{data}", "--out", "{tmp}/results.csv", "--json", "{file}/json"],
     ["demo", "--out", "{file}"],
+    ["fit", "{data}", "--plot", "{tmp}/fit.xyz"],  # a format matplotlib does not write
+    ["fit", "{data}", "--plot", "{tmp}/fit"],  # no format at all
+    ["models", "{data}", "--json", "{missing}/models.json"],
+    ["models", "{data}", "--plot", "{tmp}/models.xyz"],
+    ["batch", "{data}", "--out", "{tmp}/r.csv", "--wavelength", "all", "--plot", "{tmp}/s.xyz"],
     ["measure", "--port", "/dev/null", "--incidence", "10", "--out", "{missing}/m.csv"],
 ], ids=lambda command: " ".join(command[:1] + command[2:3]))
 def test_an_unwritable_output_fails_before_any_work(command, tmp_path, capsys, monkeypatch):
@@ -274,6 +279,43 @@ def test_an_unwritable_output_fails_before_any_work(command, tmp_path, capsys, m
     given = [part for part in argv if str(tmp_path) in part][-1]  # the bad one comes last
     assert captured.err.startswith(f"brdfjax {argv[0]}: error: ") and given in captured.err
     assert ".brdfjax" not in captured.err and list(tmp_path.glob(".*")) == []
+
+
+@pytest.mark.parametrize("options, said", [
+    (["--export", "t.bsdf", "--export-step", "7"],
+     "--export-step 7: give a step in degrees that divides 180"),
+    (["--export", "t.bsdf", "--export-step", "0"], "--export-step 0: give a step"),
+    (["--export", "t.bsdf", "--export-incidences", "30,95"],
+     "--export-incidences: 95 deg is not an incidence in [0, 90)"),
+])
+def test_an_export_grid_is_checked_in_degrees_before_the_fit(options, said, tmp_path, capsys,
+                                                             monkeypatch):
+    import brdfjax.data.formats
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("work started before the export grid was checked")
+
+    monkeypatch.setattr(brdfjax.data.formats, "load", no_work)
+    monkeypatch.chdir(tmp_path)
+    assert main(["fit", str(DATA / "synthetic" / "white_paint.csv"), *options]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"brdfjax fit: error: {said}") and err.count("\n") == 1
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("argv, said", [
+    (["eval", "--theta-i", "30", "--theta-r", "20:40:0", "--phi-r", "0"],
+     "'20:40:0': a range START:STOP:STEP runs upwards with a positive step, e.g. 20:40:1"),
+    (["eval", "--theta-i", "30", "--theta-r", "40:20:1", "--phi-r", "0"],
+     "'40:20:1': a range START:STOP:STEP runs upwards with a positive step, e.g. 20:40:1"),
+    (["batch", "x.csv", "--out", "r.csv", "--max-generations", "0"], "0: give at least 1"),
+    (["batch", "x.csv", "--out", "r.csv", "--starts", "two"], "'two': give a whole number"),
+])
+def test_a_bad_count_or_range_is_one_usage_error(argv, said, capsys):
+    with pytest.raises(SystemExit) as stop:
+        main(argv)
+    assert stop.value.code == 2
+    assert capsys.readouterr().err.strip().endswith(said)
 
 
 def test_demo_says_whether_it_compiled():

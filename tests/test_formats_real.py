@@ -326,6 +326,17 @@ def test_zemax_tis_of_a_lambertian_table(azimuths):
     assert zemax.tis(table, 40, azimuths, radials) == pytest.approx(1.0, abs=1e-3)
 
 
+def test_an_exported_model_table_reaches_the_whole_hemisphere(tmp_path):
+    """Radials are angles from the specular ray: at 80 deg incidence the hemisphere reaches
+    170 deg from it. A Lambertian table's TIS is then pi kd at every incidence (tables cut at
+    radial 90 lost the back-scatter side: 0.97 pi kd at 40 deg, 0.79 at 80)."""
+    totals = zemax.write_model(tmp_path / "lambert.bsdf", [0.1], [0, 40, 80], model="lambert")
+    np.testing.assert_allclose(totals, np.pi * 0.1, rtol=5e-3)
+    table = load(tmp_path / "lambert.bsdf")
+    source_side = np.isclose(np.degrees(table.theta_i), 80) & (table.phi_r == 0)
+    assert np.degrees(table.theta_r[source_side].max()) > 80  # radial 165: 85 deg, not 10
+
+
 def test_zemax_write_refuses_data_off_a_grid(tmp_path):
     data = rt300s.read(UAZ / "raw" / "NiTE_on_steel_v1o0A_20250915.xls")
     with pytest.raises(DataError, match="no measurement at AngleOfIncidence .*grid cells "

@@ -1,6 +1,7 @@
 """Cross-validation by incidence, predictive intervals, and model choice."""
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -241,6 +242,13 @@ def test_models_command_ranks_by_cv_error(tmp_path, capsys):
     assert "recommended: five" in out and "+ discrepancy" in out
     assert f"wrote {tmp_path / 'models.json'}" in out
     assert "to predict unmeasured geometry: five with its learned discrepancy" in out
+    # the command it suggests runs as printed (it once lacked --predict-out, which --predict
+    # needs)
+    from brdfjax.cli import build_parser
+
+    suggested = re.search(r"(brdfjax fit FILE [^;)]*)", out).group(1).split()[1:]
+    args = build_parser().parse_args(suggested)
+    assert args.model == "five" and bool(args.predict) == bool(args.predict_out)
     assert ("models ranked by cv_error, the mean held-out E of 4 interior folds (21, 30, 45, "
             "52 deg); the end incidences 10 and 60 deg are extrapolation") in out
 

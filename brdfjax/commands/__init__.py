@@ -45,15 +45,32 @@ def add_model_option(parser, help_text: str = "the model") -> None:
 
 
 def angles(text: str) -> np.ndarray:
-    """Degrees as ``10,30,60`` or an inclusive range ``START:STOP:STEP``."""
+    """Degrees as ``10,30,60`` or an inclusive range ``START:STOP:STEP`` (STEP > 0,
+    START <= STOP)."""
     try:
         if ":" in text:
             start, stop, step = (float(x) for x in text.split(":"))
-            return np.arange(start, stop + step / 2, step)
-        return np.array([float(x) for x in text.split(",")])
+        else:
+            return np.array([float(x) for x in text.split(",")])
     except ValueError:
         raise argparse.ArgumentTypeError(
             f"{text!r}: give degrees as 10,30,60 or START:STOP:STEP") from None
+    if not step > 0 or not start <= stop:
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: a range START:STOP:STEP runs upwards with a positive step, "
+            f"e.g. {min(start, stop):g}:{max(start, stop):g}:{abs(step) or 1:g}")
+    return np.arange(start, stop + step / 2, step)
+
+
+def positive_int(text: str) -> int:
+    """A whole number of at least 1 (an argparse type)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: give a whole number") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value}: give at least 1")
+    return value
 
 
 def reader_options(args) -> dict:
@@ -70,6 +87,16 @@ def reader_options(args) -> dict:
     return options
 
 
+def _check_figure_format(label: str, given: str) -> None:
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    formats = FigureCanvasBase.get_supported_filetypes()
+    if Path(given).suffix.lower().lstrip(".") not in formats:
+        raise ValueError(f"{label} {given}: name the figure with the extension of a format "
+                         f"matplotlib writes, e.g. .png, .pdf or .svg (all: "
+                         f"{', '.join(sorted(formats))})")
+
+
 def add_reader_options(parser, spectral: bool = False) -> None:
     parser.add_argument("--blank", help="RT-300S blank .xls to subtract (default: the "
                                         "blank_*.xls beside the file)")
@@ -84,20 +111,26 @@ def add_reader_options(parser, spectral: bool = False) -> None:
                                  "Zemax, ASTM)")
 
 
-def check_writable(files: dict | None = None, folders: dict | None = None) -> None:
+def check_writable(files: dict | None = None, folders: dict | None = None,
+                   figures: dict | None = None) -> None:
     """Fail now, before any work, if an output cannot be written where the user asked.
 
     Each file's folder must exist and take a new file (tried for real: permission bits
     alone say nothing to root or on a read-only mount); a folder must be a folder or be
-    creatable under the nearest existing one. Errors name the option and the path as the
-    user gave them.
+    creatable under the nearest existing one; a figure's name must end in a format
+    matplotlib writes (it takes the format from the name). Errors name the option and the
+    path as the user gave them.
 
     Args:
-        files: ``{"--plot": "fit.png", "output": ...}``; None values (options not given)
+        files: ``{"--json": "fit.json", "output": ...}``; None values (options not given)
             are skipped.
         folders: the same for output folders (created later if missing).
+        figures: the same for figures (``{"--plot": "fit.png"}``).
     """
-    for label, given in (files or {}).items():
+    for label, given in (figures or {}).items():
+        if given is not None:
+            _check_figure_format(label, given)
+    for label, given in {**(files or {}), **(figures or {})}.items():
         if given is None:
             continue
         path = Path(given)

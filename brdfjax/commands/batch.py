@@ -24,7 +24,12 @@ import os
 import sys
 from pathlib import Path
 
-from brdfjax.commands import add_reader_options, check_writable, reader_options
+from brdfjax.commands import (
+    add_reader_options,
+    check_writable,
+    positive_int,
+    reader_options,
+)
 from brdfjax.data.formats import READABLE
 from brdfjax.data.formats.cube import SUFFIXES as CUBE_SUFFIXES
 from brdfjax.data.formats.cube import is_cube
@@ -62,7 +67,7 @@ def register(subparsers) -> None:
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="send chunks to this Dask scheduler (tcp://HOST:8786) "
                         "instead of fitting here")
-    p.add_argument("--chunk-size", type=int, metavar="N",
+    p.add_argument("--chunk-size", type=positive_int, metavar="N",
                    help=f"samples per compiled fit and per write (default {FILE_CHUNK} "
                         f"files, or {CUBE_CHUNK} samples of a cube)")
     p.add_argument("--lanes", choices=("auto", "map", "vmap"), default="auto",
@@ -80,7 +85,7 @@ def register(subparsers) -> None:
     p.add_argument("--bound", action="append", default=[], metavar="NAME=LO:HI",
                    help="override a parameter's search range, e.g. b=-80:10")
     for name, text in SEARCH_OPTIONS.items():
-        p.add_argument(f"--{name.replace('_', '-')}", type=int, metavar="N",
+        p.add_argument(f"--{name.replace('_', '-')}", type=positive_int, metavar="N",
                        help=f"{text} (default: as brdfjax fit)")
     add_reader_options(p, spectral=True)
     p.add_argument("--plot", metavar="OUT",
@@ -142,17 +147,22 @@ def _is_results(path: Path) -> bool:
         return False
 
 
-def read_results(path, columns) -> dict:
-    """The rows of an earlier run by file, or nothing if ``path`` does not exist yet."""
+def read_results(path, columns, settings: dict) -> dict:
+    """The rows of an earlier run by file, or nothing if ``path`` does not exist yet; an
+    error if they were fitted with other ``settings`` (`check_options`, which names the
+    options that changed) or have other columns."""
     if not Path(path).exists():
         return {}
     with open(path, newline="", encoding="utf-8") as handle:
         reader = csv.DictReader(handle)
-        if tuple(reader.fieldnames or ()) != columns:
-            raise ValueError(f"{path}: exists but its columns are not {','.join(columns)}; "
-                             "give another --out (or the same options as the run that "
-                             "wrote it)")
-        return {sample_key(row["file"], row.get("wavelength_nm")): row for row in reader}
+        rows = {sample_key(row.get("file", ""), row.get("wavelength_nm")): row
+                for row in reader}
+    check_options(path, rows, settings)
+    if tuple(reader.fieldnames or ()) != columns:
+        raise ValueError(f"{path}: exists but its columns are not {','.join(columns)}; "
+                         "give another --out (or the same options as the run that "
+                         "wrote it)")
+    return rows
 
 
 def result_options(args, model) -> dict:
@@ -318,8 +328,6 @@ def run_batch(args) -> int:
     from brdfjax.models import get
 
     check_writable({"--out": args.out}, {"--json": args.json})
-    if args.chunk_size is not None and args.chunk_size < 1:
-        raise ValueError(f"--chunk-size {args.chunk_size}: give at least 1")
     cube = any(is_cube(item) for item in args.inputs)
     if args.chunk_size is None:
         args.chunk_size = CUBE_CHUNK if cube else FILE_CHUNK
@@ -334,7 +342,7 @@ def run_batch(args) -> int:
     spectral = spectral_request(args.wavelength)
     files = expand(args.inputs, outputs=(args.out, args.json))
     if spectral is not None:
-        check_writable({"--plot": args.plot})
+        check_writable(figures={"--plot": args.plot})
         files = spectral_samples(files, spectral)
     elif args.plot:
         raise ValueError("--plot draws parameters against wavelength: give --wavelength all "
@@ -347,20 +355,21 @@ def run_batch(args) -> int:
     if args.json and len(set(names)) < len(names):
         clash = next(n for n in names if names.count(n) > 1)
         raise ValueError(f"--json: two inputs are named {clash!r}; give them separate runs")
-    rows = read_results(args.out, columns)
     settings = result_options(args, model)
-    check_options(args.out, rows, settings)
-    pending = [f for f in files if f not in rows]
+    rows = read_results(args.out, columns, settings)
+    # A failed input is tried again: the file may have been fixed since.
+    failed = [f for f in files if f in rows and rows[f]["status"] == "failed"]
+    pending = [f for f in files if f not in rows or f in failed]
     options = fit_options(args, model)
     if args.json:
         Path(args.json).mkdir(parents=True, exist_ok=True)
     if rows:
         print(f"{args.out}: {len(files) - len(pending)} of {len(files)} inputs already done; "
-              + (f"fitting the other {len(pending)}" if pending else "nothing left to fit"),
+              + (f"fitting the other {len(pending)}" if pending else "nothing left to fit")
+              + (f" ({len(failed)} that failed before, tried again)" if failed else ""),
               file=sys.stderr)
     if not pending:
         return _summary(rows, files, [])
-    write_options(args.out, settings)  # before the first row, so no row lacks its key
     if devices:  # said before the bar opens, so it is not drawn through it
         print(f"fitting on {len(devices)} {devices[0].platform} device(s)", file=sys.stderr)
 
@@ -374,10 +383,15 @@ def run_batch(args) -> int:
         """
         batch = {**unread, **dict(zip(keys, results))}
         unread.clear()
+        if not batch:
+            return
         if args.json:
             _write_json(args.json, batch)
         rows.update({file: row(file, result, columns, model.name)
                      for file, result in batch.items()})
+        # With the first rows, not before the first fit: a run that fails before any row
+        # (an option the fit refuses) leaves nothing behind.
+        write_options(args.out, settings)
         write_results(args.out, rows, files, columns)
         if progress.n + len(batch) < progress.total:
             progress.update(len(batch))

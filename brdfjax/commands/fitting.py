@@ -14,6 +14,7 @@ from brdfjax.commands import (
     add_reader_options,
     angles,
     check_writable,
+    positive_int,
     reader_options,
 )
 from brdfjax.prediction.intervals import DISCREPANCIES  # NumPy only: --help imports no JAX
@@ -69,8 +70,9 @@ def register(subparsers) -> None:
     p.add_argument("--uncertainty", choices=UNCERTAINTY_METHODS, default="laplace",
                    help="laplace: Gaussian at the optimum, milliseconds (default); mcmc: "
                         "emcee posterior samples, seconds; none: no intervals")
-    p.add_argument("--walkers", type=int, default=32, help="mcmc: ensemble size (default 32)")
-    p.add_argument("--mcmc-steps", type=int, default=20000,
+    p.add_argument("--walkers", type=positive_int, default=32,
+                   help="mcmc: ensemble size (default 32)")
+    p.add_argument("--mcmc-steps", type=positive_int, default=20000,
                    help="mcmc: cap on the chain length; it stops earlier once longer than 50 "
                         "autocorrelation times (default 20000)")
     p.add_argument("--chain", metavar="FILE.h5",
@@ -137,7 +139,8 @@ def register(subparsers) -> None:
     p.add_argument("file", help=FILE_HELP)
     add_model_option(p, "the model to fit")
     p.add_argument("--seed", type=int, default=0, help=SEED_HELP)
-    p.add_argument("--repeats", type=int, default=3, help="timed runs per method")
+    p.add_argument("--repeats", type=positive_int, default=3,
+                   help="timed runs per method (default 3)")
     add_reader_options(p)
     p.set_defaults(run=run_compare)
 
@@ -187,14 +190,21 @@ def run_fit(args) -> None:
         from brdfjax.uncertainty.mcmc import require_emcee
 
         require_emcee()  # before the fit, not after it
+    if args.plot_corner:
+        from brdfjax.optional import require
+
+        require("corner", "mcmc", "the corner plot (--plot-corner)")
     for path in args.export:
         if not path.endswith(EXPORTS):
             raise ValueError(f"--export {path}: name a Zemax .bsdf or an ASTM E1392 .astm file")
+    if args.export:
+        check_export_grid(args.export_step, args.export_incidences)
     check_writable({**{f"--export {path}": path for path in args.export},
-                    "--json": args.json, "--plot": args.plot, "--plot-3d": args.plot_3d,
-                    "--plot-corner": args.plot_corner, "--predict-out": args.predict_out,
+                    "--json": args.json, "--predict-out": args.predict_out,
                     "--chain": args.chain if args.uncertainty == "mcmc" else None,
-                    "--abg-out": args.abg_out})
+                    "--abg-out": args.abg_out},
+                   figures={"--plot": args.plot, "--plot-3d": args.plot_3d,
+                            "--plot-corner": args.plot_corner})
     data = load(args.file, **reader_options(args))
     geometry = None
     if args.predict:  # read and checked like the output paths: before any fitting
@@ -530,17 +540,31 @@ def write_outputs(result, data, args, uncertainty=None, calibration=None,
 EXPORTS = (".bsdf", ".astm")
 
 
+def check_export_grid(step: float, incidences) -> None:
+    """``--export-step`` and ``--export-incidences``, checked in degrees before the fit: the
+    step must divide 180 (the azimuths end at 180 and the radials on a node), and the
+    incidences lie in [0, 90)."""
+    if not (0 < step <= 90 and abs(180 / step - round(180 / step)) < 1e-9):
+        raise ValueError(f"--export-step {step:g}: give a step in degrees that divides 180, "
+                         "such as 1, 2, 2.5, 5 or 10")
+    outside = [f"{t:g}" for t in np.atleast_1d(incidences) if not 0 <= t < 90]
+    if outside:
+        raise ValueError(f"--export-incidences: {', '.join(outside)} deg is not an incidence "
+                         "in [0, 90) deg")
+
+
 def export(path, result, data, args, correction) -> None:
     """Write ``--export``'s table (`brdfjax.data.formats.zemax.write_model` or
     `brdfjax.data.formats.astm.write_model_astm`) on the ``--export-*`` grid, and say its TIS."""
     from brdfjax.data.formats.astm import write_model_astm
-    from brdfjax.data.formats.zemax import model_table, tis, write_model
+    from brdfjax.data.formats.zemax import hemisphere_radials, model_table, tis, write_model
 
     step = args.export_step
     incidences = np.sort(np.asarray(args.export_incidences, float))
     options = {"sample": data.name, "model": result.model, "correction": correction,
                "wavelength_nm": data.metadata.get("wavelength_nm")}
-    azimuths, radials = np.arange(0, 180 + step / 2, step), np.arange(0, 90 + step / 2, step)
+    azimuths = np.arange(0, 180 + step / 2, step)
+    radials = hemisphere_radials(incidences, step)
     if path.endswith(".bsdf"):
         totals = write_model(path, result.params, incidences, azimuths, radials, **options)
     else:

@@ -4,7 +4,13 @@ from __future__ import annotations
 
 import sys
 
-from brdfjax.commands import add_model_option, angles, check_writable, parameters
+from brdfjax.commands import (
+    add_model_option,
+    angles,
+    check_writable,
+    parameters,
+    positive_int,
+)
 
 PLAN_OPTIONS = ("theta_r_step", "theta_r_max", "azimuth", "average", "integration_ms",
                 "beam_margin")
@@ -43,7 +49,8 @@ def register(subparsers) -> None:
                       help="sweep the signed reflection zenith from -MAX to MAX (default 85)")
     scan.add_argument("--azimuth", type=angles, metavar="DEG",
                       help="detector-arm azimuths, motor A (default 0: in plane)")
-    scan.add_argument("--average", type=int, help="integrations per reading (default 5)")
+    scan.add_argument("--average", type=positive_int,
+                      help="integrations per reading (default 5)")
     scan.add_argument("--integration-ms", type=float, help="per integration (default 20)")
     scan.add_argument("--beam-margin", type=float, metavar="DEG",
                       help="skip geometries with the detector this close to the source "
@@ -113,6 +120,9 @@ def scan_plan(args):
 def run_measure(args) -> None:
     from pathlib import Path
 
+    from brdfjax.optional import require
+
+    require("serial", "instrument", "the instrument driver (brdfjax measure)")
     from brdfjax.instrument.acquire import measure
 
     plan = scan_plan(args)

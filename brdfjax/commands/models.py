@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from brdfjax.commands import add_reader_options, reader_options
+from brdfjax.commands import add_reader_options, check_writable, reader_options
 from brdfjax.prediction.intervals import DISCREPANCIES  # NumPy only: --help imports no JAX
 
 
@@ -38,6 +38,7 @@ def run_models(args) -> None:
     from brdfjax.prediction.selection import compare_models
 
     enable()
+    check_writable({"--json": args.json}, figures={"--plot": args.plot})
     data = load(args.file, **reader_options(args))
     names = [n.strip() for n in args.models.split(",")] if args.models else None
     comparison = compare_models(data, names, seed=args.seed, progress=True,

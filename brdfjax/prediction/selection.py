@@ -105,7 +105,8 @@ class Comparison:
         if np.isfinite(predictor.corrected_cv_error):
             line += (f"\nto predict unmeasured geometry: {predictor.name} with its learned "
                      f"discrepancy (cv_error {100 * predictor.corrected_cv_error:.3g} %; "
-                     f"brdfjax fit FILE --model {predictor.name} --predict GEOMETRY); as a "
+                     f"brdfjax fit FILE --model {predictor.name} --predict GEOMETRY.csv "
+                     f"--predict-out PRED.csv); as a "
                      f"compact analytic model on its own: {best.name}")
         return line
 

@@ -405,8 +405,18 @@ def write(data: Measurements, path) -> None:
     _write_table(path, "Measured", incidences, azimuths, radials, table, comments)
 
 
+def hemisphere_radials(incidences_deg, step: float = 5.0) -> np.ndarray:
+    """Radial angles ``0, step, ...`` far enough from the specular ray to reach the whole
+    upper hemisphere at every incidence: at incidence ``I`` the farthest direction above the
+    horizon lies ``90 + I`` deg from it (the grazing one on the source side), so radials up
+    to 90 alone leave out the back-scatter side of an oblique table. ``step`` must divide
+    180."""
+    reach = min(180.0, 90.0 + float(np.max(incidences_deg)))
+    return np.arange(0.0, step * np.ceil(reach / step - 1e-9) + step / 2, step)
+
+
 def write_model(path, params, incidences_deg, azimuths_deg=tuple(range(0, 181, 10)),
-                radial_deg=tuple(range(0, 91, 5)), sample: str = "brdfjax model",
+                radial_deg=None, sample: str = "brdfjax model",
                 wavelength_nm: float | None = None, model=None, correction=None) -> list:
     """Export the fitted model as a Zemax tabular BSDF file.
 
@@ -421,7 +431,8 @@ def write_model(path, params, incidences_deg, azimuths_deg=tuple(range(0, 181, 1
         incidences_deg: the angles of incidence.
         azimuths_deg: Zemax scatter azimuths (0 points from the specular ray toward the
             normal).
-        radial_deg: Zemax radial angles from the specular ray.
+        radial_deg: Zemax radial angles from the specular ray (default: every 5 deg as far
+            as the hemisphere reaches, `hemisphere_radials`).
         sample: the name written in a ``# Sample:`` comment.
         wavelength_nm: recorded in a comment when given.
         model: a model name or `brdfjax.models.Model` (the five-parameter model if None).
@@ -431,6 +442,8 @@ def write_model(path, params, incidences_deg, azimuths_deg=tuple(range(0, 181, 1
     Returns:
         The TIS of each incidence's table (as written in the file).
     """
+    if radial_deg is None:
+        radial_deg = hemisphere_radials(incidences_deg)
     incidences, azimuths, radials, table = model_table(
         params, incidences_deg, azimuths_deg, radial_deg, model, correction)
     comments = [f"Sample: {sample}", model_comment(model, correction),
