@@ -62,6 +62,17 @@ def angles(text: str) -> np.ndarray:
     return np.arange(start, stop + step / 2, step)
 
 
+def zeniths(text: str) -> np.ndarray:
+    """`angles` that are zenith angles: in [0, 90] degrees (an argparse type)."""
+    values = angles(text)
+    outside = values[(values < 0) | (values > 90)]
+    if outside.size:
+        raise argparse.ArgumentTypeError(
+            f"{outside[0]:g} deg: zenith angles lie in [0, 90] deg (a signed in-plane angle "
+            "t is theta_r = |t|, with phi_r 180 on the specular side, else 0)")
+    return values
+
+
 def positive_int(text: str) -> int:
     """A whole number of at least 1 (an argparse type)."""
     try:

@@ -11,6 +11,7 @@ from brdfjax.commands import (
     check_writable,
     parameters,
     reader_options,
+    zeniths,
 )
 
 
@@ -22,8 +23,8 @@ def register(subparsers) -> None:
                    help="the model's parameters in order (kb,kr,a,b,kd for five) or a paper "
                         "sample name")
     add_model_option(p)
-    p.add_argument("--theta-i", type=angles, required=True, help="incidence angles (deg)")
-    p.add_argument("--theta-r", type=angles, required=True, help="reflection zenith (deg)")
+    p.add_argument("--theta-i", type=zeniths, required=True, help="incidence angles (deg)")
+    p.add_argument("--theta-r", type=zeniths, required=True, help="reflection zenith (deg)")
     p.add_argument("--phi-r", type=angles, default=np.array([180.0]),
                    help="reflection azimuth (deg; 180 = specular side; default 180)")
     p.set_defaults(run=run_eval)
@@ -35,7 +36,7 @@ def register(subparsers) -> None:
                    help="the model's parameters in order (kb,kr,a,b,kd for five) or a paper "
                         "sample name")
     add_model_option(p)
-    p.add_argument("--theta-i", type=angles, default=np.array([0.0, 30.0, 60.0]),
+    p.add_argument("--theta-i", type=zeniths, default=np.array([0.0, 30.0, 60.0]),
                    help="incidence angles (deg; default 0,30,60)")
     p.set_defaults(run=run_reflectance)
 

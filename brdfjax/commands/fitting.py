@@ -16,6 +16,7 @@ from brdfjax.commands import (
     check_writable,
     positive_int,
     reader_options,
+    zeniths,
 )
 from brdfjax.prediction.intervals import DISCREPANCIES  # NumPy only: --help imports no JAX
 
@@ -64,7 +65,7 @@ def register(subparsers) -> None:
                         "mcmc, the posterior's curves in 68 and 95 %% bands")
     p.add_argument("--plot-3d", metavar="OUT",
                    help="draw the fitted f_r cos(theta_r) over the hemisphere (PNG)")
-    p.add_argument("--incidences-3d", type=angles, metavar="DEG",
+    p.add_argument("--incidences-3d", type=zeniths, metavar="DEG",
                    help="incidences for --plot-3d (default: those of the data, up to 3)")
     p.add_argument("--log", action="store_true", help="log vertical axis in --plot")
     p.add_argument("--uncertainty", choices=UNCERTAINTY_METHODS, default="laplace",
