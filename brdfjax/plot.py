@@ -68,7 +68,8 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
         predictive: predictive bands (drawn under the others, lightest, named in the
             legend), ``{incidence: (signed_deg, prediction, lo68, hi68, lo95, hi95)}``; the
             prediction is drawn dotted where it differs from the model curve (a learned
-            discrepancy corrects it).
+            discrepancy corrects it). An incidence here that the data lack (one asked for
+            with ``--predict``) is drawn too, its model curve dash-dotted.
         errors: ``{incidence: E}`` shown in the legend (a fraction; printed in %).
         log: log-scale the vertical axis (for dark samples with a strong peak).
         model: a model name or `brdfjax.models.Model` (the five-parameter model if None).
@@ -80,20 +81,29 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
 
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7.5, 5))
-    colours = plt.get_cmap("viridis")(np.linspace(0, 0.9, max(1, len(data.incidences_deg))))
+    measured = [float(t) for t in data.incidences_deg]
+    asked = sorted(float(t) for t in (predictive or {})
+                   if not np.any(np.isclose(float(t), measured)))
+    incidences = sorted(measured + asked)
+    colours = plt.get_cmap("viridis")(np.linspace(0, 0.9, max(1, len(incidences))))
     held = {round(float(x), 6) for x in held_out}
     corrected = False
-    for colour, incidence in zip(colours, data.incidences_deg):
-        subset = data.at_incidences([incidence])
+    for colour, incidence in zip(colours, incidences):
         is_held = round(float(incidence), 6) in held
-        error = (errors or {}).get(float(incidence))
-        ax.plot(signed_angle_deg(subset), subset.brdf * np.cos(subset.theta_r),
-                "o", ms=3, mfc="none" if is_held else colour, mec=colour,
-                label=f"{incidence:g} deg data" + (" (held out)" if is_held else "")
-                + ("" if error is None else f", E {100 * error:.3g} %"))
+        if incidence in asked:
+            ax.plot([], [], ":", color=colour, lw=1.5,
+                    label=f"{incidence:g} deg predicted (not measured)")
+        else:
+            subset = data.at_incidences([incidence])
+            error = (errors or {}).get(float(incidence))
+            ax.plot(signed_angle_deg(subset), subset.brdf * np.cos(subset.theta_r),
+                    "o", ms=3, mfc="none" if is_held else colour, mec=colour,
+                    label=f"{incidence:g} deg data" + (" (held out)" if is_held else "")
+                    + ("" if error is None else f", E {100 * error:.3g} %"))
         angles, signed = curve_angles(incidence)
         curve = np.asarray(projected_brdf(np.asarray(params, float), *angles, model=model))
-        ax.plot(signed, curve, "--" if is_held else "-", color=colour, lw=1.5)
+        style = "-." if incidence in asked else "--" if is_held else "-"
+        ax.plot(signed, curve, style, color=colour, lw=1.5)
         if predictive and incidence in predictive:
             x, centre, _, _, lo95, hi95 = predictive[incidence]
             if log:  # a band reaching zero or below ends at the bottom of the data's decades
@@ -124,6 +134,9 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
     if held:
         handles.append(Line2D([], [], ls="--", color=shade, lw=1.5,
                               label=f"fitted {name} model at a held-out incidence"))
+    if asked:
+        handles.append(Line2D([], [], ls="-.", color=shade, lw=1.5,
+                              label=f"fitted {name} model at an incidence not measured"))
     if bands:
         handles += [Patch(color=shade, alpha=BAND_ALPHA["68"], lw=0,
                           label="68 % band of the fitted curve"),

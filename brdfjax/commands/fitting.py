@@ -505,8 +505,12 @@ def write_outputs(result, data, args, uncertainty=None, calibration=None,
         from brdfjax.plot import plot_fit
 
         errors = {**result.error_by_incidence, **result.validation_by_incidence}
+        # --predict's incidences that were not measured are drawn too: the curve asked for
+        asked = [] if prediction is None else [
+            t for t in np.unique(np.round(prediction.theta_i, 6))
+            if not np.any(np.isclose(t, data.incidences_deg))]
         predictive = (None if calibration is None else
-                      predictive_bands(result, data.incidences_deg, calibration))
+                      predictive_bands(result, [*data.incidences_deg, *asked], calibration))
         kinds = " and ".join(name for name, shown in (
             ("68/95 % curve bands", bands), ("95 % predictive bands", predictive))
             if shown)
