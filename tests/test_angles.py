@@ -25,6 +25,13 @@ def test_degrees_given_as_radians_are_refused(call):
         call()
 
 
+def test_radians_past_the_horizon_are_not_taken_for_degrees():
+    """1.7 rad is 97 deg: below the horizon, and np.radians(1.7) would be no help."""
+    with pytest.raises(ValueError, match=r"^theta_i = 1.7 rad is below the horizon: zenith "
+                                         r"angles lie in \[0, pi/2\] = \[0, 1.5708\] rad$"):
+        brdfjax.reflectance(PAINT, 1.7)
+
+
 def test_a_signed_in_plane_angle_is_explained():
     with pytest.raises(ValueError, match=r"theta_r = -0.3 is negative.*phi_r = pi"):
         brdfjax.brdf(PAINT, 0.5, -0.3, 0.0)

@@ -86,6 +86,10 @@ def test_unknown_format_and_missing_file(tmp_path, capsys):
     assert "unknown format '.txt'" in capsys.readouterr().err
     assert main(["info", str(tmp_path / "none.csv")]) == 1
     assert "no such file" in capsys.readouterr().err
+    assert main(["fit", str(tmp_path)]) == 1  # a folder is not missing: say what to do
+    assert capsys.readouterr().err == (
+        f"brdfjax fit: error: {tmp_path}: is a folder, not a file (give one of its files, or "
+        "fit every file in it with brdfjax batch FOLDER --out RESULTS.csv)\n")
 
 
 def test_held_out_validation_needs_two_incidences(tmp_path, capsys):

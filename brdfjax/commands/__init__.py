@@ -64,12 +64,16 @@ def angles(text: str) -> np.ndarray:
 
 def zeniths(text: str) -> np.ndarray:
     """`angles` that are zenith angles: in [0, 90] degrees (an argparse type)."""
+    from brdfjax.angles import check_degrees
+
     values = angles(text)
-    outside = values[(values < 0) | (values > 90)]
-    if outside.size:
+    try:
+        check_degrees(zenith=values)
+    except ValueError:
+        outside = values[(values < 0) | (values > 90)]
         raise argparse.ArgumentTypeError(
             f"{outside[0]:g} deg: zenith angles lie in [0, 90] deg (a signed in-plane angle "
-            "t is theta_r = |t|, with phi_r 180 on the specular side, else 0)")
+            "t is theta_r = |t|, with phi_r 180 on the specular side, else 0)") from None
     return values
 
 

@@ -140,6 +140,10 @@ def _reader(path):
     from brdfjax.data.formats import astm, csv, nist, rt300s, zemax
 
     path = Path(path)
+    if path.is_dir():
+        raise DataError("is a folder, not a file", path,
+                        hint="give one of its files, or fit every file in it with brdfjax "
+                             "batch FOLDER --out RESULTS.csv")
     if not path.is_file():
         raise DataError("no such file", path)
     suffix = path.suffix.lower()
