@@ -18,6 +18,8 @@ import threading
 import time
 import warnings
 
+from brdfjax.commands import OTHER_MODELS
+
 # Each module defines ``register(subparsers)``, adding its commands with a ``run`` default.
 COMMAND_MODULES = (
     "brdfjax.commands.fitting",
@@ -32,8 +34,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="brdfjax",
         description="Fit BRDF models (the five-parameter model of Zhang, Wu, Cao and Zhang "
-                    "by default; torrance-sparrow, ggx, beckmann, lambert, rpv) to measured "
-                    "BRDF data, cross-validate them and predict new geometry.")
+                    f"by default; {OTHER_MODELS}) to measured BRDF data, cross-validate "
+                    "them and predict new geometry.")
     parser.add_argument("--version", action="version", version="brdfjax 0.1.0")
     verbose = "say how long each compiled stage took to trace, lower and compile (stderr)"
     parser.add_argument("-v", "--verbose", "--profile", action="store_true", help=verbose)

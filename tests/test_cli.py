@@ -126,6 +126,14 @@ def test_fit_summary_flags_a_fit_that_creates_energy(capsys):
     assert f"warning: reflectance up to {rho.max():.3f} > 1" in out and "not physical" in out
 
 
+def test_the_help_names_every_model():
+    from brdfjax.commands import OTHER_MODELS
+    from brdfjax.models import available
+
+    named = {name.strip() for name in OTHER_MODELS.split(", or ")[0].split(",")}
+    assert named | {"five"} == set(available())
+
+
 def test_every_argument_has_help():
     import argparse
 

@@ -39,9 +39,13 @@ def add_model_option(parser, help_text: str = "the model") -> None:
     """``--model NAME`` (the five-parameter model by default; names checked when used, so
     that ``--help`` needs no JAX)."""
     parser.add_argument("--model", default="five", metavar="NAME",
-                        help=f"{help_text}: five (default), torrance-sparrow, ggx, beckmann, "
-                             "lambert, rpv, backscatter, abg, ross-li, or a sum A+B such as "
-                             "ggx+backscatter")
+                        help=f"{help_text}: five (default), {OTHER_MODELS}")
+
+
+# The models besides the paper's, for --help (which imports no JAX, so not from
+# brdfjax.models; tests/test_cli.py checks the list against brdfjax.models.available()).
+OTHER_MODELS = ("torrance-sparrow, ggx, beckmann, lambert, rpv, backscatter, abg, ross-li, or "
+                "a sum A+B such as ggx+backscatter")
 
 
 def angles(text: str) -> np.ndarray:

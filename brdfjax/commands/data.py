@@ -50,7 +50,10 @@ def register(subparsers) -> None:
     add_reader_options(p)
     p.set_defaults(run=run_convert)
 
-    p = subparsers.add_parser("info", help="summary of a measurement file")
+    p = subparsers.add_parser("info", help="summary of a measurement file",
+                              description="What brdfjax reads from a measurement file: its "
+                                          "metadata, points, incidences and the ranges of "
+                                          "theta_r and BRDF.")
     p.add_argument("file", help="the measurement file (any format `brdfjax fit` reads)")
     add_reader_options(p)
     p.set_defaults(run=run_info)
