@@ -588,7 +588,7 @@ def choose_model(keys, args, read=None) -> str:
     import numpy as np
 
     from brdfjax.data.measurements import DataError
-    from brdfjax.prediction.selection import compare_models, ranked
+    from brdfjax.prediction.selection import TIE_RELATIVE, compare_models, ranked
 
     errors, used, reasons = {}, 0, []
     for key in keys:
@@ -609,9 +609,13 @@ def choose_model(keys, args, read=None) -> str:
     median = {name: float(np.median(values)) for name, values in errors.items()}
     order = ranked(median)
     best, runner = order[0], order[1] if len(order) > 1 else None
-    print(f"--model auto: {best}, the lowest median cv_error ({100 * median[best]:.3g} %) "
+    tied = runner is not None and median[runner] < median[best]
+    digits = ".4g" if tied else ".3g"
+    print(f"--model auto: {best}, the lowest median cv_error ({100 * median[best]:{digits}} %) "
           f"over {used} of {len(keys)} samples"
-          + (f"; next {runner} ({100 * median[runner]:.3g} %)" if runner else ""),
+          + (f"; {runner} ({100 * median[runner]:.4g} %) ties with it within "
+             f"{100 * TIE_RELATIVE:g} % and has more parameters" if tied else
+             f"; next {runner} ({100 * median[runner]:.3g} %)" if runner else ""),
           file=sys.stderr)
     return best
 

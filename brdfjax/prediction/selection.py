@@ -136,9 +136,12 @@ class Comparison:
 
 # cv_errors within this relative (and absolute) distance of the lowest are a tie, which the
 # model with fewer parameters wins: a sum whose second part is switched off (weight at its
-# lower bound) predicts exactly as its first part alone, and noise-free data of one model
-# are predicted to rounding by any sum containing it.
-TIE_RELATIVE = 1e-6
+# lower bound) predicts as its first part alone, to the last digits its own search reaches
+# (ggx+backscatter, its lobe off, against ggx on NiTE on steel A: cv_error 0.728579 against
+# 0.728644 %, 9e-5 apart), and noise-free data of one model are predicted to rounding by any
+# sum containing it. 0.1 % is far below what held-out incidences can tell apart: one model's
+# cv_error differs from fold to fold by tens of per cent.
+TIE_RELATIVE = 1e-3
 TIE_ABSOLUTE = 1e-12
 
 
