@@ -78,14 +78,14 @@ class FitResult:
     error_by_incidence: dict
     validation_error: float | None
     validation_by_incidence: dict
-    residuals: np.ndarray
+    residuals: np.ndarray = field(repr=False)
     status: str
     at_bounds: list
     evaluations: int
-    lm_steps: np.ndarray
-    lm_success: np.ndarray
+    lm_steps: np.ndarray = field(repr=False)
+    lm_success: np.ndarray = field(repr=False)
     timings: dict
-    history: np.ndarray
+    history: np.ndarray = field(repr=False)
     method: str
     train_incidences: list
     validation_incidences: list
