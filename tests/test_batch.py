@@ -546,7 +546,7 @@ def test_every_wavelength_is_a_sample_with_its_own_row(tmp_path, capsys):
         assert float(record["kd"]) == pytest.approx(np.sum(data.brdf * cos2) / np.sum(cos2),
                                                     rel=1e-9)
     assert plot.stat().st_size > 0
-    capsys.readouterr()
+    assert f"wrote {plot}" in capsys.readouterr().err  # said, as fit says it
     assert main(command) == 0
     assert "2 of 2 inputs already done; nothing left to fit" in capsys.readouterr().err
 

@@ -406,6 +406,7 @@ def run_batch(args) -> int:
         progress.close()
     if args.plot:
         _plot_spectral(args.plot, [rows[key] for key in files if key in rows], model.names)
+        print(f"wrote {args.plot}", file=sys.stderr)
     return _summary(rows, files, lost)
 
 
