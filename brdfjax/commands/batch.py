@@ -157,8 +157,10 @@ def read_results(path, columns, settings: dict) -> dict:
         reader = csv.DictReader(handle)
         rows = {sample_key(row.get("file", ""), row.get("wavelength_nm")): row
                 for row in reader}
-    check_options(path, rows, settings)
-    if tuple(reader.fieldnames or ()) != columns:
+    other_columns = tuple(reader.fieldnames or ()) != columns
+    if not other_columns or options_path(path).exists():  # a results file of ours
+        check_options(path, rows, settings)  # names the options that changed, if any did
+    if other_columns:
         raise ValueError(f"{path}: exists but its columns are not {','.join(columns)}; "
                          "give another --out (or the same options as the run that "
                          "wrote it)")
