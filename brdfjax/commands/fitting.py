@@ -111,7 +111,9 @@ def register(subparsers) -> None:
     p.add_argument("--export-incidences", type=angles, metavar="DEG", default="0:80:10",
                    help="incidences of --export's tables (default 0:80:10)")
     p.add_argument("--export-step", type=float, metavar="DEG", default=5.0,
-                   help="--export's grid step in scatter angle and azimuth (default 5 deg)")
+                   help="--export's grid step in scatter angle and azimuth, a divisor of "
+                        "180 deg (default 5 deg); the scatter angles reach the whole "
+                        "hemisphere")
     p.add_argument("--per-incidence", action="store_true",
                    help="fit each incidence on its own (all in one batched call) and print "
                         "one parameter row per incidence; with --model abg, also the TIS "
