@@ -80,7 +80,7 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
     from brdfjax.models.paper import projected_brdf
 
     plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(7.5, 5))
+    fig, ax = plt.subplots(figsize=(7.5, 6))
     measured = [float(t) for t in data.incidences_deg]
     asked = sorted(float(t) for t in (predictive or {})
                    if not np.any(np.isclose(float(t), measured)))
@@ -148,7 +148,9 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
     if corrected:
         handles.append(Line2D([], [], ls=":", color=shade, lw=1.5,
                               label="prediction: model x learned discrepancy"))
-    ax.legend(handles=handles, fontsize=7, ncol=2)
+    # Below the axes: inside them, it covered the peaks of the first incidences.
+    ax.legend(handles=handles, fontsize=7, ncol=3, loc="upper center",
+              bbox_to_anchor=(0.5, -0.14), frameon=False)
     ax.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=120)

@@ -95,6 +95,14 @@ def test_fit_curves_pass_through_the_peaks_and_bands_are_named_not_faint(tmp_pat
                                              "95 % band of the fitted curve",
                                              "95 % predictive band (a new measurement)")]
     assert alpha == sorted(alpha, reverse=True) and alpha[1] >= 0.2  # visible, not faint
+    # the legend stands below the axes: inside, it covered the first incidences' peaks
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = FigureCanvasAgg(figure)  # the figure was closed: lay it out again to measure
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    assert not ax.get_legend().get_window_extent(renderer).overlaps(
+        ax.get_window_extent(renderer))
     assert not any(word in ax.get_title() for word in ("lighter", "darker"))
     assert is_png(tmp_path / "fit.png")
     # every line style is named: the fitted curve, and dashed where an incidence is held out
