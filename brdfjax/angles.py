@@ -46,13 +46,14 @@ def check_radians(azimuths=(), **angles) -> None:
             raise ValueError(
                 f"{name} = {bad[0]:g} is negative: zenith angles lie in [0, pi/2] rad; a signed "
                 "in-plane angle t is theta_r = |t| with phi_r = pi on the specular side, else 0")
-        if bad[0] <= np.pi:  # a radian value past the horizon, not degrees by mistake
+        degrees = bad[bad > np.pi]  # no radian zenith angle is past pi: degrees by mistake
+        if not degrees.size:
             raise ValueError(f"{name} = {bad[0]:g} rad is below the horizon: zenith angles "
                              "lie in [0, pi/2] = [0, 1.5708] rad")
         raise ValueError(
-            f"{name} = {bad[0]:g} is outside [0, pi/2] = [0, 1.5708] rad: angles in Python "
+            f"{name} = {degrees[0]:g} is outside [0, pi/2] = [0, 1.5708] rad: angles in Python "
             f"are radians (files and the command line take degrees); did you mean "
-            f"np.radians({bad[0]:g})?")
+            f"np.radians({degrees[0]:g})?")
 
 
 def check_degrees(**angles) -> None:

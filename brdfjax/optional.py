@@ -16,16 +16,17 @@ class MissingDependency(ImportError):
     """An optional package that the requested work needs is not installed."""
 
 
-def require(module: str, extra: str, purpose: str) -> ModuleType:
+def require(module: str, extra: str, purpose: str, package: str | None = None) -> ModuleType:
     """Import ``module``, or raise `MissingDependency` naming the extra that installs it.
 
     Args:
         module: the module to import (``dask.distributed``).
         extra: brdfjax's extra that installs it (``batch``).
         purpose: what needs it, as the user asked for it (``--scheduler``).
+        package: the package's name where it is not the module's (``pyserial``).
     """
     try:
         return importlib.import_module(module)
     except ImportError as missing:
-        raise MissingDependency(f"{purpose} needs {module.split('.')[0]}, which is not "
-                                f"installed here: pip install 'brdfjax[{extra}]'") from missing
+        raise MissingDependency(f"{purpose} needs {package or module.split('.')[0]}, which is "
+                                f"not installed here: pip install 'brdfjax[{extra}]'") from missing

@@ -30,6 +30,8 @@ def test_radians_past_the_horizon_are_not_taken_for_degrees():
     with pytest.raises(ValueError, match=r"^theta_i = 1.7 rad is below the horizon: zenith "
                                          r"angles lie in \[0, pi/2\] = \[0, 1.5708\] rad$"):
         brdfjax.reflectance(PAINT, 1.7)
+    with pytest.raises(ValueError, match=r"theta_i = 30 is outside .*np.radians\(30\)"):
+        brdfjax.reflectance(PAINT, [0, 2, 30, 60])  # degrees, whatever comes first
 
 
 def test_a_signed_in_plane_angle_is_explained():

@@ -200,6 +200,28 @@ def test_mcmc_without_emcee_is_one_clear_error_before_the_fit(tmp_path, capsys, 
         "installed here: pip install 'brdfjax[mcmc]'")]
 
 
+@pytest.mark.parametrize("module, argv, said", [
+    ("corner", ["fit", str(DATA / "synthetic" / "white_paint.csv"), "--plot-corner", "c.png"],
+     ("the corner plot (--plot-corner) needs corner, which is not installed here: "
+      "pip install 'brdfjax[mcmc]'")),
+    ("serial", ["measure", "--port", "/dev/null", "--incidence", "10", "--out", "m.csv"],
+     ("the instrument driver (brdfjax measure) needs pyserial, which is not installed here: "
+      "pip install 'brdfjax[instrument]'")),
+])
+def test_a_missing_optional_package_is_one_line_before_any_work(module, argv, said, tmp_path,
+                                                               capsys, monkeypatch):
+    import sys
+
+    import brdfjax.fitting.fit
+
+    monkeypatch.setitem(sys.modules, module, None)  # its import now fails
+    monkeypatch.setattr(brdfjax.fitting.fit, "fit", None)  # a fit would fail otherwise
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 1
+    assert capsys.readouterr().err == f"brdfjax {argv[0]}: error: {said}\n"
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_an_import_error_that_is_a_bug_keeps_its_traceback(monkeypatch):
     """Only a missing optional package (MissingDependency) is a one-line user error."""
     import brdfjax.commands.data as command
@@ -291,7 +313,8 @@ def test_an_unwritable_output_fails_before_any_work(command, tmp_path, capsys, m
 
 @pytest.mark.parametrize("options, said", [
     (["--export", "t.bsdf", "--export-step", "7"],
-     "--export-step 7: give a step in degrees that divides 180"),
+     "--export-step 7: give a step in degrees of at most 90 that divides 180"),
+    (["--export", "t.bsdf", "--export-step", "180"], "--export-step 180: give a step"),
     (["--export", "t.bsdf", "--export-step", "0"], "--export-step 0: give a step"),
     (["--export", "t.bsdf", "--export-incidences", "30,95"],
      "--export-incidences: 95 deg is not an incidence in [0, 90)"),
@@ -320,6 +343,9 @@ def test_an_export_grid_is_checked_in_degrees_before_the_fit(options, said, tmp_
      ("95 deg: zenith angles lie in [0, 90] deg (a signed in-plane angle t is theta_r = |t|, "
       "with phi_r 180 on the specular side, else 0)")),
     (["fit", "x.csv", "--incidences-3d", "100"], "100 deg: zenith angles lie in [0, 90] deg"),
+    (["eval", "--theta-i", "30", "--theta-r", "10:20:nan", "--phi-r", "0"],
+     "'10:20:nan': give finite numbers of degrees"),
+    (["fit", "x.csv", "--incidences-3d", "nan"], "'nan': give finite numbers of degrees"),
     (["batch", "x.csv", "--out", "r.csv", "--max-generations", "0"], "0: give at least 1"),
     (["batch", "x.csv", "--out", "r.csv", "--starts", "two"], "'two': give a whole number"),
 ])

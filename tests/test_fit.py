@@ -86,6 +86,10 @@ def test_a_fit_that_cannot_converge_says_so(clean_white_paint):
     assert result.status == "max_steps"
     assert not result.lm_success.any()
     assert result.error > 1e-6
+    # print(result) reads as a summary: no residuals (hundreds of them) or per-start arrays
+    text = repr(result)
+    assert "kb=" in text and "status='max_steps'" in text and len(text) < 1500
+    assert not any(f"{name}=" in text for name in ("residuals", "lm_steps", "history"))
 
 
 def test_methods_ga_and_lm(clean_white_paint):

@@ -86,10 +86,15 @@ def test_unknown_format_and_missing_file(tmp_path, capsys):
     assert "unknown format '.txt'" in capsys.readouterr().err
     assert main(["info", str(tmp_path / "none.csv")]) == 1
     assert "no such file" in capsys.readouterr().err
+    (tmp_path / "y.csv").write_text("theta_i,theta_r,phi_r,brdf\n10,20,180,0.5\n")
+    assert main(["info", str(tmp_path / "y.csv"), "--blank", "b.xls"]) == 1  # not a TypeError
+    assert capsys.readouterr().err.startswith(
+        f"brdfjax info: error: {tmp_path / 'y.csv'}: --blank does not apply to this file "
+        "(csv format)")
     assert main(["fit", str(tmp_path)]) == 1  # a folder is not missing: say what to do
     assert capsys.readouterr().err == (
-        f"brdfjax fit: error: {tmp_path}: is a folder, not a file (give one of its files, or "
-        "fit every file in it with brdfjax batch FOLDER --out RESULTS.csv)\n")
+        f"brdfjax fit: error: {tmp_path}: is a folder, not a file (give one of its files; "
+        "brdfjax batch FOLDER --out RESULTS.csv fits every file of a folder)\n")
 
 
 def test_held_out_validation_needs_two_incidences(tmp_path, capsys):

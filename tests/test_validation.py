@@ -263,6 +263,18 @@ def test_a_tie_within_a_tenth_of_a_per_cent_goes_to_the_smaller_model():
         "ggx", "ggx+backscatter", "five"]
     assert ranked({"ggx+backscatter": 0.0072, "ggx": 0.00728, "five": 0.1})[0] == (
         "ggx+backscatter")
+    # what the user reads names the tie, and compares with the first model outside it
+    from types import SimpleNamespace
+
+    from brdfjax.prediction.selection import Comparison, ModelScore
+
+    scores = [ModelScore(name, SimpleNamespace(), SimpleNamespace(cv_error=value), 0.0, 0.0, {})
+              for name, value in (("ggx+backscatter", 0.007285793), ("ggx", 0.007286441),
+                                  ("five", 0.1456))]
+    assert Comparison(scores).recommendation() == (
+        "recommended: ggx, the fewest parameters of ggx, ggx+backscatter, tied within 0.1 % for "
+        "the lowest held-out error (cv_error 0.7286 %), 20x lower than five's and 20x lower "
+        "than the paper's model")
 
 
 def test_the_models_plot_keeps_its_legends_off_the_curves(tmp_path):

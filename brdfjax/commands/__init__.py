@@ -52,13 +52,16 @@ def angles(text: str) -> np.ndarray:
     """Degrees as ``10,30,60`` or an inclusive range ``START:STOP:STEP`` (STEP > 0,
     START <= STOP)."""
     try:
+        values = [float(x) for x in text.split(":" if ":" in text else ",")]
         if ":" in text:
-            start, stop, step = (float(x) for x in text.split(":"))
-        else:
-            return np.array([float(x) for x in text.split(",")])
+            start, stop, step = values
     except ValueError:
         raise argparse.ArgumentTypeError(
             f"{text!r}: give degrees as 10,30,60 or START:STOP:STEP") from None
+    if not np.all(np.isfinite(values)):
+        raise argparse.ArgumentTypeError(f"{text!r}: give finite numbers of degrees")
+    if ":" not in text:
+        return np.array(values)
     if not step > 0 or not start <= stop:
         raise argparse.ArgumentTypeError(
             f"{text!r}: a range START:STOP:STEP runs upwards with a positive step, "
@@ -81,15 +84,21 @@ def zeniths(text: str) -> np.ndarray:
     return values
 
 
-def positive_int(text: str) -> int:
-    """A whole number of at least 1 (an argparse type)."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r}: give a whole number") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{value}: give at least 1")
-    return value
+def at_least(minimum: int):
+    """An argparse type: a whole number of at least ``minimum``."""
+    def whole_number(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r}: give a whole number") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"{value}: give at least {minimum}")
+        return value
+
+    return whole_number
+
+
+positive_int = at_least(1)
 
 
 def reader_options(args) -> dict:

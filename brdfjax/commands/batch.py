@@ -5,10 +5,10 @@ Results go to one CSV row per input file (``file``, one column per parameter of 
 flag what `fit` warns of: parameters at a bound, and incidences whose E exceeds 3x the
 overall E). After every chunk the whole CSV is rewritten through a
 temporary file and moved into place, so it always holds every finished sample and never a
-half-written row. Rerunning the same command skips the files already in it: an
-interrupted batch (Ctrl-C, a crash, a killed job) resumes where it stopped, and the final
-file is the same as an uninterrupted run's, rows in input order. Delete a row (or the
-file) to refit it. The options that change results (model, seed, bounds, search settings,
+half-written row. Rerunning the same command skips the files already fitted in it and
+tries the failed ones again (a file may have been fixed): an interrupted batch (Ctrl-C, a
+crash, a killed job) resumes where it stopped, and the final file is the same as an
+uninterrupted run's, rows in input order. Delete a row (or the file) to refit it. The options that change results (model, seed, bounds, search settings,
 uncertainty, reader options) are kept beside the CSV in ``OUT.options.json``; a rerun with
 other options refuses, naming what changed, instead of keeping rows fitted otherwise.
 """
@@ -26,6 +26,7 @@ from pathlib import Path
 
 from brdfjax.commands import (
     add_reader_options,
+    at_least,
     check_writable,
     positive_int,
     reader_options,
@@ -61,8 +62,9 @@ def register(subparsers) -> None:
                         "theta_r, phi_r in degrees, brdf (N, P) with NaN missing, optional "
                         "sigma and sample; see brdfjax.data.formats.cube)")
     p.add_argument("--out", required=True, metavar="CSV|H5",
-                   help="results file (CSV; for a cube, .h5); samples already in it are "
-                        "not refitted, and a rerun with other options refuses")
+                   help="results file (CSV; for a cube, .h5); samples already fitted in it "
+                        "are not refitted, failed ones are tried again (files), and a "
+                        "rerun with other options refuses")
     p.add_argument("--json", metavar="DIR", help="also write each result as DIR/NAME.json")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="send chunks to this Dask scheduler (tcp://HOST:8786) "
@@ -84,8 +86,9 @@ def register(subparsers) -> None:
                         f"{AUTO_SAMPLES} samples (brdfjax models on each), for every sample")
     p.add_argument("--bound", action="append", default=[], metavar="NAME=LO:HI",
                    help="override a parameter's search range, e.g. b=-80:10")
-    for name, text in SEARCH_OPTIONS.items():
-        p.add_argument(f"--{name.replace('_', '-')}", type=positive_int, metavar="N",
+    for name, text in SEARCH_OPTIONS.items():  # no LM steps (0) leaves the search's result
+        p.add_argument(f"--{name.replace('_', '-')}", metavar="N",
+                       type=at_least(0) if name == "max_steps" else positive_int,
                        help=f"{text} (default: as brdfjax fit)")
     add_reader_options(p, spectral=True)
     p.add_argument("--plot", metavar="OUT",
@@ -155,11 +158,14 @@ def read_results(path, columns, settings: dict) -> dict:
         return {}
     with open(path, newline="", encoding="utf-8") as handle:
         reader = csv.DictReader(handle)
-        rows = {sample_key(row.get("file", ""), row.get("wavelength_nm")): row
-                for row in reader}
+        records = list(reader)
+    ours = options_path(path).exists()  # a results file of brdfjax's, not another CSV
     other_columns = tuple(reader.fieldnames or ()) != columns
-    if not other_columns or options_path(path).exists():  # a results file of ours
-        check_options(path, rows, settings)  # names the options that changed, if any did
+    if other_columns and not ours:
+        raise ValueError(f"{path}: exists but its columns are not {','.join(columns)}; "
+                         "give another --out")
+    rows = {sample_key(row["file"], row.get("wavelength_nm")): row for row in records}
+    check_options(path, rows, settings)  # names the options that changed, if any did
     if other_columns:
         raise ValueError(f"{path}: exists but its columns are not {','.join(columns)}; "
                          "give another --out (or the same options as the run that "
@@ -359,13 +365,18 @@ def run_batch(args) -> int:
         raise ValueError(f"--json: two inputs are named {clash!r}; give them separate runs")
     settings = result_options(args, model)
     rows = read_results(args.out, columns, settings)
-    # A failed input is tried again: the file may have been fixed since.
-    failed = [f for f in files if f in rows and rows[f]["status"] == "failed"]
+    # A failed input is tried again: the file may have been fixed since. A spectral file
+    # that could not be read had one row; read now, its wavelengths replace that row.
+    spread = {split_key(f)[0] for f in files if split_key(f)[1] is not None}
+    failed = [f for f in rows if rows[f]["status"] == "failed" and (f in files or f in spread)]
+    for key in failed:
+        if key not in files:
+            del rows[key]
     pending = [f for f in files if f not in rows or f in failed]
     options = fit_options(args, model)
     if args.json:
         Path(args.json).mkdir(parents=True, exist_ok=True)
-    if rows:
+    if rows or failed:
         print(f"{args.out}: {len(files) - len(pending)} of {len(files)} inputs already done; "
               + (f"fitting the other {len(pending)}" if pending else "nothing left to fit")
               + (f" ({len(failed)} that failed before, tried again)" if failed else ""),
@@ -591,7 +602,7 @@ def choose_model(keys, args, read=None) -> str:
     import numpy as np
 
     from brdfjax.data.measurements import DataError
-    from brdfjax.prediction.selection import TIE_RELATIVE, compare_models, ranked
+    from brdfjax.prediction.selection import choice_line, compare_models, ranked, tied_first
 
     errors, used, reasons = {}, 0, []
     for key in keys:
@@ -610,17 +621,13 @@ def choose_model(keys, args, read=None) -> str:
         raise ValueError("--model auto: no sample could be cross-validated to choose a model "
                          f"({reasons[0] if reasons else 'no inputs'}); give --model NAME")
     median = {name: float(np.median(values)) for name, values in errors.items()}
-    order = ranked(median)
-    best, runner = order[0], order[1] if len(order) > 1 else None
-    tied = runner is not None and median[runner] < median[best]
-    digits = ".4g" if tied else ".3g"
-    print(f"--model auto: {best}, the lowest median cv_error ({100 * median[best]:{digits}} %) "
-          f"over {used} of {len(keys)} samples"
-          + (f"; {runner} ({100 * median[runner]:.4g} %) ties with it within "
-             f"{100 * TIE_RELATIVE:g} % and has more parameters" if tied else
-             f"; next {runner} ({100 * median[runner]:.3g} %)" if runner else ""),
+    tied = tied_first(median)
+    runner = next((name for name in ranked(median) if name not in tied), None)
+    print(f"--model auto: {choice_line(median, 'median cv_error')} over {used} of "
+          f"{len(keys)} samples"
+          + (f"; next {runner} ({100 * median[runner]:.3g} %)" if runner else ""),
           file=sys.stderr)
-    return best
+    return ranked(median)[0]
 
 
 def _fit_chunks(chunks, scheduler, options, record, cube: bool = False) -> list:

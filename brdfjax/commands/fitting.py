@@ -112,8 +112,8 @@ def register(subparsers) -> None:
                    help="incidences of --export's tables (default 0:80:10)")
     p.add_argument("--export-step", type=float, metavar="DEG", default=5.0,
                    help="--export's grid step in scatter angle and azimuth, a divisor of "
-                        "180 deg (default 5 deg); the scatter angles reach the whole "
-                        "hemisphere")
+                        "180 deg of at most 90 (default 5 deg); the scatter angles reach the "
+                        "whole hemisphere")
     p.add_argument("--per-incidence", action="store_true",
                    help="fit each incidence on its own (all in one batched call) and print "
                         "one parameter row per incidence; with --model abg, also the TIS "
@@ -549,11 +549,15 @@ EXPORTS = (".bsdf", ".astm")
 
 def check_export_grid(step: float, incidences) -> None:
     """``--export-step`` and ``--export-incidences``, checked in degrees before the fit: the
-    step must divide 180 (the azimuths end at 180 and the radials on a node), and the
-    incidences lie in [0, 90)."""
-    if not (0 < step <= 90 and abs(180 / step - round(180 / step)) < 1e-9):
-        raise ValueError(f"--export-step {step:g}: give a step in degrees that divides 180, "
-                         "such as 1, 2, 2.5, 5 or 10")
+    step as `brdfjax.data.formats.zemax.hemisphere_radials` takes it (it divides 180: the
+    azimuths end at 180 and the radials on a node), and the incidences in [0, 90)."""
+    from brdfjax.data.formats.zemax import hemisphere_radials
+
+    try:
+        hemisphere_radials([0.0], step)
+    except ValueError:
+        raise ValueError(f"--export-step {step:g}: give a step in degrees of at most 90 that "
+                         "divides 180, such as 1, 2, 2.5, 5 or 10") from None
     outside = [f"{t:g}" for t in np.atleast_1d(incidences) if not 0 <= t < 90]
     if outside:
         raise ValueError(f"--export-incidences: {', '.join(outside)} deg is not an incidence "

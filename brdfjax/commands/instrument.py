@@ -122,7 +122,7 @@ def run_measure(args) -> None:
 
     from brdfjax.optional import require
 
-    require("serial", "instrument", "the instrument driver (brdfjax measure)")
+    require("serial", "instrument", "the instrument driver (brdfjax measure)", "pyserial")
     from brdfjax.instrument.acquire import measure
 
     plan = scan_plan(args)

@@ -92,9 +92,10 @@ class Comparison:
     def recommendation(self) -> str:
         """One line: the model to use and why."""
         best = self.best
-        others = [s for s in self.scores if s is not best and np.isfinite(s.cv_error)]
-        line = (f"recommended: {best.name}, the lowest held-out error (cv_error "
-                f"{100 * best.cv_error:.3g} %)")
+        errors = {s.name: s.cv_error for s in self.scores}
+        tied = tied_first(errors)
+        others = [s for s in self.scores if s.name not in tied and np.isfinite(s.cv_error)]
+        line = f"recommended: {choice_line(errors, 'held-out error', 'cv_error ')}"
         if others:
             runner = min(others, key=lambda s: s.cv_error)
             line += f", {runner.cv_error / best.cv_error:.3g}x lower than {runner.name}'s"
@@ -147,18 +148,37 @@ TIE_ABSOLUTE = 1e-12
 
 def ranked(cv_errors: dict) -> list:
     """Model names by cv_error, lowest first; a NaN (no interior fold) ranks last. Models
-    tied with the lowest (`TIE_RELATIVE`, `TIE_ABSOLUTE`) come first by parameter count,
-    fewest first."""
-    from brdfjax.models import get
-
+    tied with the lowest (`tied_first`) come first by parameter count, fewest first."""
+    tied = tied_first(cv_errors)
     order = sorted(cv_errors, key=lambda name: cv_errors[name] if np.isfinite(cv_errors[name])
                    else np.inf)
-    if not order or not np.isfinite(cv_errors[order[0]]):
-        return order
-    best = cv_errors[order[0]]
-    tied = [n for n in order if cv_errors[n] <= best * (1 + TIE_RELATIVE) + TIE_ABSOLUTE]
-    tied.sort(key=lambda name: (get(name).size, cv_errors[name]))
     return tied + [n for n in order if n not in tied]
+
+
+def tied_first(cv_errors: dict) -> list:
+    """The models tied with the lowest cv_error (within `TIE_RELATIVE`, `TIE_ABSOLUTE`), by
+    parameter count, fewest first: the first is the one chosen, the others tie with it."""
+    from brdfjax.models import get
+
+    finite = [v for v in cv_errors.values() if np.isfinite(v)]
+    if not finite:
+        return []
+    lowest = min(finite)
+    tied = [n for n, v in cv_errors.items() if v <= lowest * (1 + TIE_RELATIVE) + TIE_ABSOLUTE]
+    return sorted(tied, key=lambda name: (get(name).size, cv_errors[name]))
+
+
+def choice_line(cv_errors: dict, what: str, label: str = "") -> str:
+    """Why the first of `ranked` was chosen, for a user: ``NAME, the lowest WHAT (LABEL v
+    %)``, or where models tie with it, ``NAME, the fewest parameters of A, B, tied within
+    0.1 % for the lowest WHAT (LABEL v %)``."""
+    tied = tied_first(cv_errors)
+    if len(tied) > 1:
+        return (f"{tied[0]}, the fewest parameters of {', '.join(tied)}, tied within "
+                f"{100 * TIE_RELATIVE:g} % for the lowest {what} "
+                f"({label}{100 * min(cv_errors[n] for n in tied):.4g} %)")
+    first = ranked(cv_errors)[0]
+    return f"{first}, the lowest {what} ({label}{100 * cv_errors[first]:.3g} %)"
 
 
 def information_criteria(result, data: Measurements) -> tuple[float, float]:

@@ -14,6 +14,7 @@
 
 from __future__ import annotations
 
+import inspect
 import json
 import math
 import os
@@ -41,7 +42,7 @@ def load(path, **options) -> Measurements:
     Returns:
         The validated `Measurements`.
     """
-    return _reader(path).read(path, **options)
+    return _reader(path, options).read(path, **options)
 
 
 def load_geometry(path, **options) -> Measurements:
@@ -58,7 +59,7 @@ def load_geometry(path, **options) -> Measurements:
     Returns:
         The `Measurements` (angles in radians, as always).
     """
-    reader = _reader(path)
+    reader = _reader(path, options)
     if reader.__name__ == "brdfjax.data.formats.csv":
         return reader.read(path, geometry_only=True, **options)
     return reader.read(path, **options)
@@ -135,15 +136,33 @@ def split_lines(text: str) -> list[str]:
     return text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
 
 
-def _reader(path):
-    """The reader module for a file: by suffix, and for text files by content."""
+# The command-line option of each reader option, for an error that names what was typed.
+OPTION_FLAGS = {"blank": "--blank", "wavelength_nm": "--wavelength"}
+
+
+def _reader(path, options=()):
+    """The reader module for a file: by suffix, and for text files by content; a
+    `DataError` if it takes none of the reader ``options`` given (``--blank`` for a CSV)."""
+    reader = _format_reader(path)
+    taken = inspect.signature(reader.read).parameters
+    for name in options:
+        if name not in taken:
+            kind = reader.__name__.rsplit(".", 1)[-1]
+            raise DataError(f"{OPTION_FLAGS.get(name, name)} does not apply to this file "
+                            f"({kind} format)", path,
+                            hint="--blank is for RT-300S .xls scans, --wavelength for NIST, "
+                                 "ASTM, Zemax and CSV files of several wavelengths")
+    return reader
+
+
+def _format_reader(path):
     from brdfjax.data.formats import astm, csv, nist, rt300s, zemax
 
     path = Path(path)
     if path.is_dir():
         raise DataError("is a folder, not a file", path,
-                        hint="give one of its files, or fit every file in it with brdfjax "
-                             "batch FOLDER --out RESULTS.csv")
+                        hint="give one of its files; brdfjax batch FOLDER --out RESULTS.csv "
+                             "fits every file of a folder")
     if not path.is_file():
         raise DataError("no such file", path)
     suffix = path.suffix.lower()

@@ -409,8 +409,11 @@ def hemisphere_radials(incidences_deg, step: float = 5.0) -> np.ndarray:
     """Radial angles ``0, step, ...`` far enough from the specular ray to reach the whole
     upper hemisphere at every incidence: at incidence ``I`` the farthest direction above the
     horizon lies ``90 + I`` deg from it (the grazing one on the source side), so radials up
-    to 90 alone leave out the back-scatter side of an oblique table. ``step`` must divide
-    180."""
+    to 90 alone leave out the back-scatter side of an oblique table. ``step`` (deg) must
+    divide 180 and be at most 90, so that the last radial ends the hemisphere exactly."""
+    if not (0 < step <= 90 and abs(180 / step - round(180 / step)) < 1e-9):
+        raise ValueError(f"radial step {step:g} deg: give one of at most 90 that divides 180, "
+                         "such as 1, 2, 2.5, 5 or 10")
     reach = min(180.0, 90.0 + float(np.max(incidences_deg)))
     return np.arange(0.0, step * np.ceil(reach / step - 1e-9) + step / 2, step)
 
