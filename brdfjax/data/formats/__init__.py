@@ -142,7 +142,8 @@ OPTION_FLAGS = {"blank": "--blank", "wavelength_nm": "--wavelength"}
 
 def _reader(path, options=()):
     """The reader module for a file: by suffix, and for text files by content; a
-    `DataError` if it takes none of the reader ``options`` given (``--blank`` for a CSV)."""
+    `DataError` if it does not take one of the reader ``options`` given (``--blank`` for a
+    CSV)."""
     reader = _format_reader(path)
     taken = inspect.signature(reader.read).parameters
     for name in options:
