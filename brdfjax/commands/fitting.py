@@ -328,6 +328,12 @@ def choose_model(data, seed: int, predicting: bool = False) -> str:
     chosen = comparison.predictor if predicting else comparison.best
     if predicting and np.isfinite(chosen.corrected_cv_error):
         print(f"--model auto: predicting with {chosen.name} and its learned discrepancy")
+        best = comparison.best
+        if chosen is not best and chosen.fit.error > 3 * best.fit.error:
+            print(f"--model auto: {chosen.name} alone fits these data far worse than "
+                  f"{best.name} (E {100 * chosen.fit.error:.3g} % against "
+                  f"{100 * best.fit.error:.3g} %): its learned discrepancy carries the shape, "
+                  "and the fit below is the analytic part alone")
     return chosen.name
 
 
