@@ -8,9 +8,10 @@ temporary file and moved into place, so it always holds every finished sample an
 half-written row. Rerunning the same command skips the files already fitted in it and
 tries the failed ones again (a file may have been fixed): an interrupted batch (Ctrl-C, a
 crash, a killed job) resumes where it stopped, and the final file is the same as an
-uninterrupted run's, rows in input order. Delete a row (or the file) to refit it. The options that change results (model, seed, bounds, search settings,
-uncertainty, reader options) are kept beside the CSV in ``OUT.options.json``; a rerun with
-other options refuses, naming what changed, instead of keeping rows fitted otherwise.
+uninterrupted run's, rows in input order. Delete a row (or the file) to refit it. The
+options that change results (model, seed, bounds, search settings, uncertainty, reader
+options) are kept beside the CSV in ``OUT.options.json``; a rerun with other options
+refuses, naming what changed, instead of keeping rows fitted otherwise.
 """
 
 from __future__ import annotations
