@@ -161,16 +161,14 @@ def read_results(path, columns, settings: dict) -> dict:
         reader = csv.DictReader(handle)
         records = list(reader)
     ours = options_path(path).exists()  # a results file of brdfjax's, not another CSV
-    other_columns = tuple(reader.fieldnames or ()) != columns
+    other_columns = (f"{path}: exists but its columns are not {','.join(columns)}; give "
+                     "another --out" if tuple(reader.fieldnames or ()) != columns else None)
     if other_columns and not ours:
-        raise ValueError(f"{path}: exists but its columns are not {','.join(columns)}; "
-                         "give another --out")
+        raise ValueError(other_columns)
     rows = {sample_key(row["file"], row.get("wavelength_nm")): row for row in records}
     check_options(path, rows, settings)  # names the options that changed, if any did
     if other_columns:
-        raise ValueError(f"{path}: exists but its columns are not {','.join(columns)}; "
-                         "give another --out (or the same options as the run that "
-                         "wrote it)")
+        raise ValueError(f"{other_columns} (or the same options as the run that wrote it)")
     return rows
 
 
@@ -622,13 +620,13 @@ def choose_model(keys, args, read=None) -> str:
         raise ValueError("--model auto: no sample could be cross-validated to choose a model "
                          f"({reasons[0] if reasons else 'no inputs'}); give --model NAME")
     median = {name: float(np.median(values)) for name, values in errors.items()}
-    tied = tied_first(median)
-    runner = next((name for name in ranked(median) if name not in tied), None)
+    order, tied = ranked(median), tied_first(median)
+    runner = next((name for name in order if name not in tied), None)
     print(f"--model auto: {choice_line(median, 'median cv_error')} over {used} of "
           f"{len(keys)} samples"
           + (f"; next {runner} ({100 * median[runner]:.3g} %)" if runner else ""),
           file=sys.stderr)
-    return ranked(median)[0]
+    return order[0]
 
 
 def _fit_chunks(chunks, scheduler, options, record, cube: bool = False) -> list:

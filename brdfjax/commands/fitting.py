@@ -555,15 +555,12 @@ EXPORTS = (".bsdf", ".astm")
 
 def check_export_grid(step: float, incidences) -> None:
     """``--export-step`` and ``--export-incidences``, checked in degrees before the fit: the
-    step as `brdfjax.data.formats.zemax.hemisphere_radials` takes it (it divides 180: the
-    azimuths end at 180 and the radials on a node), and the incidences in [0, 90)."""
-    from brdfjax.data.formats.zemax import hemisphere_radials
+    step by `brdfjax.data.formats.zemax.is_grid_step`, the incidences in [0, 90)."""
+    from brdfjax.data.formats.zemax import is_grid_step
 
-    try:
-        hemisphere_radials([0.0], step)
-    except ValueError:
+    if not is_grid_step(step):
         raise ValueError(f"--export-step {step:g}: give a step in degrees of at most 90 that "
-                         "divides 180, such as 1, 2, 2.5, 5 or 10") from None
+                         "divides 180, such as 1, 2, 2.5, 5 or 10")
     outside = [f"{t:g}" for t in np.atleast_1d(incidences) if not 0 <= t < 90]
     if outside:
         raise ValueError(f"--export-incidences: {', '.join(outside)} deg is not an incidence "

@@ -405,13 +405,19 @@ def write(data: Measurements, path) -> None:
     _write_table(path, "Measured", incidences, azimuths, radials, table, comments)
 
 
+def is_grid_step(step: float) -> bool:
+    """Whether ``step`` (deg) can space a table's radials and azimuths: at most 90 and a
+    divisor of 180 (the azimuths end at 180, the radials on a node)."""
+    return 0 < step <= 90 and abs(180 / step - round(180 / step)) < 1e-9
+
+
 def hemisphere_radials(incidences_deg, step: float = 5.0) -> np.ndarray:
     """Radial angles ``0, step, ...`` far enough from the specular ray to reach the whole
     upper hemisphere at every incidence: at incidence ``I`` the farthest direction above the
     horizon lies ``90 + I`` deg from it (the grazing one on the source side), so radials up
     to 90 alone leave out the back-scatter side of an oblique table. ``step`` (deg) must
-    divide 180 and be at most 90, so that the last radial ends the hemisphere exactly."""
-    if not (0 < step <= 90 and abs(180 / step - round(180 / step)) < 1e-9):
+    pass `is_grid_step`, so that the last radial ends the hemisphere exactly."""
+    if not is_grid_step(step):
         raise ValueError(f"radial step {step:g} deg: give one of at most 90 that divides 180, "
                          "such as 1, 2, 2.5, 5 or 10")
     reach = min(180.0, 90.0 + float(np.max(incidences_deg)))
