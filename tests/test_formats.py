@@ -106,6 +106,20 @@ def test_held_out_validation_needs_two_incidences(tmp_path, capsys):
     assert "incidence(s) 45 deg not in the data" in capsys.readouterr().err
 
 
+def test_errors_name_the_file_read_not_the_source_it_records(tmp_path, capsys):
+    # A converted CSV records where its data came from; an error is about the CSV itself.
+    path = tmp_path / "converted.csv"
+    path.write_text("# source: original.xls\n" + HEADER
+                    + "".join(f"{i},{t},180,0.1\n" for i in (10, 30) for t in range(0, 80, 5)))
+    assert main(["fit", str(path), "--validate-incidence", "45"]) == 1
+    assert capsys.readouterr().err.startswith(f"brdfjax fit: error: {path}: held-out incidence")
+    data = load(path)
+    assert (data.path, data.metadata["source"]) == (str(path), "original.xls")
+    save(data, tmp_path / "again.csv")  # the path is the reader's, not written
+    assert "# path" not in (tmp_path / "again.csv").read_text()
+    assert load(tmp_path / "again.csv").path == str(tmp_path / "again.csv")
+
+
 def test_measurements_reject_mismatched_lengths():
     with pytest.raises(ValueError, match="theta_r has 2 values"):
         Measurements([0.1, 0.2, 0.3], [0.1, 0.2], [0, 0, 0], [1, 1, 1])

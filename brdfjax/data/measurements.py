@@ -64,7 +64,9 @@ class Measurements:
         brdf: measured BRDF in 1/sr, shape (N,).
         sigma: optional per-point standard uncertainty of ``brdf`` (1/sr), shape (N,).
         weights: optional per-point weights of Eq. (6) (g1 g2 of the paper), shape (N,).
-        metadata: sample name, wavelength, source and anything else worth keeping.
+        metadata: sample name, wavelength, source and anything else worth keeping;
+            ``path`` is the file they were read from (set by `brdfjax.load`; a brdfjax CSV's
+            ``source`` line keeps where its data first came from).
     """
 
     theta_i: np.ndarray
@@ -97,6 +99,11 @@ class Measurements:
     @property
     def name(self) -> str:
         return str(self.metadata.get("sample", "sample"))
+
+    @property
+    def path(self) -> str | None:
+        """The file these measurements were read from; None for data made in memory."""
+        return self.metadata.get("path")
 
     @property
     def incidences_deg(self) -> np.ndarray:

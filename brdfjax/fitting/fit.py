@@ -130,11 +130,11 @@ def split(data: Measurements, validate_incidences_deg=None) -> tuple[Measurement
     missing = set(np.round(validate_incidences_deg, 6)) - set(held.incidences_deg)
     if missing:
         raise DataError(f"held-out incidence(s) {_degrees(sorted(missing))} deg not in the data",
-                        data.metadata.get("source"),
+                        data.path,
                         hint=f"the data have {_degrees(data.incidences_deg)} deg")
     if len(train.incidences_deg) == 0:
         raise DataError("nothing left to fit after holding out "
-                        f"{_degrees(validate_incidences_deg)} deg", data.metadata.get("source"),
+                        f"{_degrees(validate_incidences_deg)} deg", data.path,
                         hint="held-out validation needs at least two incidence angles")
     return train, held
 

@@ -165,7 +165,7 @@ def cross_validate(data: Measurements, model=None, *, seed: int = 0, bounds=None
     groups = incidence_groups(data)
     if len(groups) < 3:
         raise DataError(f"cross-validation needs at least 3 incidences, the data have "
-                        f"{len(groups)}", data.metadata.get("source"),
+                        f"{len(groups)}", data.path,
                         hint="measure more incidences, or skip --cv")
     samples = [data.select(~mask) for _, _, _, mask in groups] + ([data] if full_fit else [])
     results = fit_batch(samples, model=model, seed=seed, bounds=bounds, **options)

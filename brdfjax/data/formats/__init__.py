@@ -42,7 +42,13 @@ def load(path, **options) -> Measurements:
     Returns:
         The validated `Measurements`.
     """
-    return _reader(path, options).read(path, **options)
+    return _read_from(path, _reader(path, options).read(path, **options))
+
+
+def _read_from(path, data: Measurements) -> Measurements:
+    """``data`` with the file it was read from (``metadata["path"]``: errors name it)."""
+    data.metadata["path"] = str(path)
+    return data
 
 
 def load_geometry(path, **options) -> Measurements:
@@ -61,8 +67,8 @@ def load_geometry(path, **options) -> Measurements:
     """
     reader = _reader(path, options)
     if reader.__name__ == "brdfjax.data.formats.csv":
-        return reader.read(path, geometry_only=True, **options)
-    return reader.read(path, **options)
+        return _read_from(path, reader.read(path, geometry_only=True, **options))
+    return _read_from(path, reader.read(path, **options))
 
 
 def load_spectral(path, wavelengths=None) -> dict[float, Measurements]:
@@ -86,8 +92,9 @@ def load_spectral(path, wavelengths=None) -> dict[float, Measurements]:
 
     reader = _reader(path)
     if hasattr(reader, "read_spectral"):
-        return reader.read_spectral(path, wavelengths)
-    data = reader.read(path)
+        return {wavelength: _read_from(path, data)
+                for wavelength, data in reader.read_spectral(path, wavelengths).items()}
+    data = _read_from(path, reader.read(path))
     try:
         wavelength = float(data.metadata["wavelength_nm"])
     except (KeyError, ValueError):
