@@ -485,12 +485,34 @@ def plot_band_widths(bands, path, title: str = "", held_out=()):
     plt.close(fig)
 
 
+def same_curves(names, curves, count: int, rtol: float = 1e-3) -> dict:
+    """The first ``count`` distinct curves among ``names`` (in rank order): ``{drawn name:
+    [it, then the names whose curves lie within rtol of its peak]}``, drawn as one, by the
+    model of the fewest parameters among them. Two models can fit alike (ggx+backscatter
+    with its lobe switched off is ggx): drawn apart, the later curve hides the earlier.
+    ``curves(name)`` gives a model's values."""
+    from brdfjax.models import get
+
+    groups, values = {}, {}
+    for name in names:
+        values[name] = curves(name)
+        twin = next((g for g in groups if np.max(np.abs(values[name] - values[g]))
+                     <= rtol * np.max(np.abs(values[g]))), None)
+        if twin is not None:
+            groups[twin].append(name)
+        elif len(groups) < count:
+            groups[name] = [name]
+    simplest = (sorted(group, key=lambda name: get(name).size) for group in groups.values())
+    return {group[0]: group for group in simplest}
+
+
 def plot_models(data, comparison, path, title: str = "", max_panels: int = 6,
                 max_models: int = 4):
     """The best models' fits over the data, one panel per incidence (up to ``max_panels``).
 
     Drawn: the ``max_models`` lowest cv_error, and the paper's model where it was compared
-    (ten models' curves hid the data and each other; the table has them all). Solid: the
+    (ten models' curves hid the data and each other; the table has them all); models whose
+    fits draw the same curve (`same_curves`) count once. Solid: the
     fit on all incidences; dashed: the fit of the fold that held this incidence out, i.e.
     the model's prediction of an incidence it did not see. The legend gives each model's
     held-out E at that incidence; it stands below its panel, never over the curves.
@@ -507,22 +529,31 @@ def plot_models(data, comparison, path, title: str = "", max_panels: int = 6,
     rows = -(-len(panels) // columns)
     fig, axes = plt.subplots(rows, columns, figsize=(4.6 * columns, 4.9 * rows), squeeze=False)
     colours = plt.get_cmap("tab10")
-    shown = comparison.ranking[:max_models]
-    shown += [name for name in ("five",) if name in comparison.ranking and name not in shown]
-    for ax, fold in zip(axes.ravel(), panels):
+    scores = {s.name: s for s in comparison.scores}
+    panel_angles = [curve_angles((fold.low + fold.high) / 2) for fold in panels]
+
+    def curves(name):  # the fit on all incidences, over every panel
+        fit = scores[name].fit
+        return np.concatenate([np.asarray(projected_brdf(fit.vector, *angles, model=fit.model))
+                               for angles, _ in panel_angles])
+
+    shown = same_curves(comparison.ranking, curves, max_models)
+    if "five" in scores and not any("five" in group for group in shown.values()):
+        shown |= same_curves(["five"], curves, 1)
+    for ax, fold, (angles, signed) in zip(axes.ravel(), panels, panel_angles):
         subset = data.at_incidences([fold.low]) if fold.low == fold.high else data.select(
             (np.degrees(data.theta_i) >= fold.low) & (np.degrees(data.theta_i) <= fold.high))
         ax.plot(signed_angle_deg(subset), subset.brdf * np.cos(subset.theta_r), "o", ms=2.5,
                 color="0.2", label="data", zorder=3)
-        angles, signed = curve_angles((fold.low + fold.high) / 2)
-        for k, name in enumerate(shown):
-            score = next(s for s in comparison.scores if s.name == name)
+        for k, (name, twins) in enumerate(shown.items()):
+            score = scores[name]
             held = next(f for f in score.validation.folds if f.label == fold.label)
             colour = colours(k % 10)
+            same = f"; {', '.join(twins[1:])} the same" if len(twins) > 1 else ""
             ax.plot(signed, np.asarray(projected_brdf(score.fit.vector, *angles,
                                                       model=score.fit.model)),
                     "-", color=colour, lw=1.2,
-                    label=f"{name} (held-out E {100 * held.held_error:.3g} %)")
+                    label=f"{name} (held-out E {100 * held.held_error:.3g} %{same})")
             ax.plot(signed, np.asarray(projected_brdf(held.params, *angles,
                                                       model=score.fit.model)),
                     "--", color=colour, lw=1.0)
@@ -538,7 +569,8 @@ def plot_models(data, comparison, path, title: str = "", max_panels: int = 6,
                   frameon=False, handlelength=1.5, columnspacing=1.0)
     for ax in axes.ravel()[len(panels):]:
         ax.axis("off")
-    drawn = (f"the {len(shown)} models drawn" if len(shown) == len(comparison.ranking) else
+    drawn = (f"the {len(comparison.ranking)} models drawn"
+             if sum(map(len, shown.values())) == len(comparison.ranking) else
              f"the {min(max_models, len(shown))} lowest cv_error"
              + (" and the paper's model" if len(shown) > max_models else "")
              + f" of {len(comparison.ranking)}")

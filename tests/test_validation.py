@@ -305,6 +305,29 @@ def test_the_models_plot_keeps_its_legends_off_the_curves(tmp_path):
     assert drawn == ["data", "five"] and "the 1 lowest cv_error of 2" in one.texts[0].get_text()
 
 
+def test_the_models_plot_draws_models_that_fit_alike_once():
+    """ggx+backscatter with its lobe off is ggx: drawn apart, one curve hid the other. The
+    simpler model is drawn and names its twin; with the lobe on, each is drawn."""
+    from brdfjax.models.paper import projected_brdf
+    from brdfjax.plot import curve_angles, same_curves
+
+    ggx = (2.424, 0.3534, 0.04117, 1e-8)
+    fits = {"ggx+backscatter": (*ggx, 1e-10, 0.002), "beckmann": (0.8968, 0.2858, 0.07, 0.0018),
+            "ggx": ggx, "lambert": (0.05,)}
+    angles, _ = curve_angles(30.0)
+
+    def curves(name):
+        return np.asarray(projected_brdf(np.array(fits[name]), *angles, model=name))
+
+    names = list(fits)
+    assert same_curves(names, curves, 2) == {"ggx": ["ggx", "ggx+backscatter"],
+                                             "beckmann": ["beckmann"]}
+    assert same_curves(names, curves, 1) == {"ggx": ["ggx", "ggx+backscatter"]}
+    assert list(same_curves(names, curves, 3)) == ["ggx", "beckmann", "lambert"]
+    fits["ggx+backscatter"] = (*ggx, 0.01, 0.2)  # a lobe 0.2 % of the peak: its own curve
+    assert list(same_curves(names, curves, 3)) == ["ggx+backscatter", "beckmann", "ggx"]
+
+
 def test_model_auto_predicts_with_the_model_best_corrected(monkeypatch, capsys):
     """``fit --model auto`` with --predict chooses by the cv_error of each model times its
     learned discrepancy (``Comparison.predictor``), and says so; without it, by cv_error.
