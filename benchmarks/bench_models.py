@@ -40,7 +40,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from benchmarks import report
-from benchmarks.report import commit_of, load_average, worker_json, write_section
+from benchmarks.report import commit_of, load_average, time_commands, worker_json, write_section
 
 TRAIN = [10, 30, 45, 60]
 RT300S = REPO / "data" / "real" / "uaz-loft-rt300s"
@@ -334,14 +334,11 @@ def bench_command(repeats):
             "01aeroglaze (600 points)": (RT300S / "raw_legacy_1deg" / "01aeroglaze.xls",
                                          10.0 * 1.5 if SUFFIX else 10.0)}
     cli = str(Path(sys.executable).parent / "brdfjax")
+    timed = time_commands({label: [cli, "models", str(path)]
+                           for label, (path, _) in runs.items()}, repeats)
     rows = []
-    for label, (path, target) in runs.items():
-        subprocess.run([cli, "models", str(path)], check=True, capture_output=True)  # warm
-        times = []
-        for _ in range(repeats):
-            tic = time.perf_counter()
-            subprocess.run([cli, "models", str(path)], check=True, capture_output=True)
-            times.append(time.perf_counter() - tic)
+    for label, (_, target) in runs.items():
+        times = timed[label]
         median = float(np.median(times))
         rows.append(f"| {label} | {median:.2f} | {min(times):.2f}-{max(times):.2f} | "
                     f"{target:g} | {'yes' if median <= target else 'no'} |")

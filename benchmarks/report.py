@@ -14,6 +14,7 @@ import platform
 import re
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 BENCHMARKS = Path(__file__).resolve().parents[1] / "BENCHMARKS.md"
@@ -115,6 +116,26 @@ def worker_json(command: list, env: dict | None = None) -> dict:
     if done.returncode:
         raise RuntimeError(f"worker {command[1:]} failed:\n{done.stderr}")
     return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def time_commands(commands: dict, repeats: int) -> dict:
+    """Wall seconds of whole commands, ``{label: [repeats times]}``: each run once to warm
+    the caches, then the commands in turn, ``repeats`` rounds (so that a drift of the
+    machine's speed falls on all of them alike). A failing command raises with its stderr."""
+    def run(command):
+        tic = time.perf_counter()
+        done = subprocess.run(command, capture_output=True, text=True, check=False)
+        if done.returncode:
+            raise RuntimeError(f"{' '.join(map(str, command))} failed:\n{done.stderr}")
+        return time.perf_counter() - tic
+
+    for command in commands.values():
+        run(command)
+    times = {label: [] for label in commands}
+    for _ in range(repeats):
+        for label, command in commands.items():
+            times[label].append(run(command))
+    return times
 
 
 def commit_of(tree) -> str:
