@@ -13,6 +13,7 @@ so ``import brdfjax`` (and the CLI's ``--help``) stays fast.
 """
 
 import importlib
+import importlib.util
 import os
 import sys
 
@@ -81,6 +82,7 @@ _EXPORTS = {
     "FitResult": "brdfjax.fitting.fit",
     "fit_batch": "brdfjax.fitting.batch",
     "cross_validate": "brdfjax.prediction.cross_validation",
+    "fit_per_incidence": "brdfjax.prediction.cross_validation",
     "CrossValidation": "brdfjax.prediction.cross_validation",
     "predict": "brdfjax.prediction.intervals",
     "Prediction": "brdfjax.prediction.intervals",
@@ -122,6 +124,7 @@ __all__ = [
     "evaluate",
     "fit",
     "fit_batch",
+    "fit_per_incidence",
     "inline_dispatch",
     "laplace_approximation",
     "load",
@@ -138,7 +141,11 @@ __all__ = [
 
 def __getattr__(name):
     if name not in _EXPORTS:
-        raise AttributeError(f"module 'brdfjax' has no attribute {name!r}")
+        # A subpackage or module (brdfjax.cache.enable(), brdfjax.models.available()),
+        # imported on first use like the names.
+        if name.startswith("_") or importlib.util.find_spec(f"{__name__}.{name}") is None:
+            raise AttributeError(f"module 'brdfjax' has no attribute {name!r}")
+        return importlib.import_module(f"{__name__}.{name}")
     value = getattr(importlib.import_module(_EXPORTS[name]), name)
     globals()[name] = value
     return value

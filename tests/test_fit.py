@@ -410,3 +410,53 @@ def test_evolve_takes_a_seed_a_typed_key_or_a_legacy_key():
             for key in (5, jax.random.key(5), jax.random.PRNGKey(5))]
     np.testing.assert_array_equal(runs[0], runs[1])
     np.testing.assert_array_equal(runs[0], runs[2])
+
+
+def test_library_calls_check_measurements_built_in_python(white_paint):
+    """Measurements built in Python have not been through load()'s checks: fit, predict
+    and compare_models check them, as fit_batch did (degrees read as radians converged)."""
+    from types import SimpleNamespace
+
+    from brdfjax.data.measurements import DataError, Measurements
+    from brdfjax.prediction.intervals import predict
+    from brdfjax.prediction.selection import compare_models
+
+    degrees = Measurements(*(np.degrees(x) for x in (white_paint.theta_i, white_paint.theta_r,
+                                                     white_paint.phi_r)), white_paint.brdf)
+    with pytest.raises(DataError, match=r"did you mean np.radians\(10\)\? \(Measurements"
+                                        r"\.from_degrees takes degrees\)"):
+        fit(degrees, model="ggx")
+    broken = Measurements(white_paint.theta_i, white_paint.theta_r, white_paint.phi_r,
+                          np.where(np.arange(len(white_paint)) == 3, np.nan, white_paint.brdf))
+    with pytest.raises(DataError, match="brdf is nan"):
+        fit(broken)
+    with pytest.raises(TypeError, match=r"fit takes Measurements, got str: read a file with "
+                                        r"brdfjax.load\(path\)"):
+        fit("white_paint.csv")
+    with pytest.raises(TypeError, match="predict takes a fit's result"):
+        predict(get("ggx").Params(1.0, 0.3, 0.04, 0.01), white_paint)
+    with pytest.raises(DataError, match="did you mean np.radians"):
+        predict(SimpleNamespace(training=white_paint), degrees)
+    with pytest.raises(ValueError, match="unknown discrepancy 'GP'"):  # before any work
+        predict(SimpleNamespace(training=white_paint), white_paint, discrepancy="GP")
+    with pytest.raises(ValueError, match="unknown discrepancy 'GP'"):
+        compare_models(white_paint, "ggx,five", discrepancy="GP")
+    with pytest.raises(ValueError, match="unknown model 'nope'"):  # a string of names
+        compare_models(white_paint, "ggx, nope")
+
+
+def test_a_single_held_out_incidence_needs_no_list(white_paint):
+    from brdfjax.fitting.fit import split
+
+    train, held = split(white_paint, 21)
+    assert list(held.incidences_deg) == [21.0] and 21.0 not in train.incidences_deg
+
+
+def test_a_fit_that_raises_leaves_no_compilation_running(white_paint):
+    """The polish compiled ahead in a thread was left running after the search refused its
+    arguments: at the end of a script, the process crashed at exit (1 run in 8)."""
+    import threading
+
+    with pytest.raises(ValueError, match="population_size 12 is not a multiple of islands 8"):
+        fit(white_paint, population_size=12)
+    assert "brdfjax polish compiled ahead" not in [t.name for t in threading.enumerate()]

@@ -64,6 +64,26 @@ def test_sums_follow_the_naming_and_shared_constant_rules():
         get("ggx+nope")
 
 
+def test_parameters_are_evaluated_by_their_own_model_or_refused():
+    """A fit's named tuple picks its model; another model's parameters are refused (JAX
+    clamps an index past the end: ggx's four read as the paper's five gave rho 3.5)."""
+    ggx = get("ggx").Params(*EXAMPLES["ggx"][0])
+    assert float(reflectance(ggx, 0.5)) == float(reflectance(ggx, 0.5, model="ggx"))
+    assert float(brdf(ggx, 0.5, 0.3, np.pi)) == pytest.approx(
+        transcription.MODELS["ggx"](*EXAMPLES["ggx"][0], 0.5, 0.3, np.pi), rel=1e-12)
+    cases = [(lambda: reflectance(brdfjax.PAPER_SAMPLES["white_paint"], 0.5, model="ggx"),
+              r"Params\(kb, kr, a, b, kd\) are not the parameters of ggx"),
+             (lambda: brdf(np.array(EXAMPLES["ggx"][0]), 0.5, 0.3, np.pi),
+              r"five takes 5 parameters \(kb, kr, a, b, kd\).*shape \(4,\)"),
+             (lambda: brdf(get("beckmann").Params(*EXAMPLES["ggx"][0]), 0.5, 0.3, np.pi,
+                           model="ggx"), "BeckmannParams.*not the parameters of ggx"),
+             (lambda: brdf(get("ggx+backscatter").Params(*EXAMPLES["ggx+backscatter"][0]),
+                           0.5, 0.3, np.pi), "no single model.*pass model=")]
+    for call, message in cases:
+        with pytest.raises(ValueError, match=message):
+            call()
+
+
 def test_two_lobes_of_one_kind_are_ordered_and_a_zero_weight_is_said():
     model = get("ggx+ggx")
     bounds = default_bounds(model)
@@ -366,8 +386,10 @@ def synthetic(name, params):
 RECOVERED = {"torrance-sparrow": EXAMPLES["torrance-sparrow"][1], "ggx": EXAMPLES["ggx"][1],
              "beckmann": EXAMPLES["beckmann"][1], "lambert": EXAMPLES["lambert"][0],
              "rpv": EXAMPLES["rpv"][0], "backscatter": EXAMPLES["backscatter"][0],
-             "abg": EXAMPLES["abg"][0], "ross-li": EXAMPLES["ross-li"][0],
+             "abg": EXAMPLES["abg"][0], "ross-li": (0.3, 0.2, 0.02),
              **{name: EXAMPLES[name][0] for name in SUMS}}
+# Ross-Li's examples go negative on this geometry (its sparse kernel is negative: -14 % of
+# the peak for the first), which fit() refuses as measured data, as load() does.
 
 
 @pytest.mark.parametrize("name", list(RECOVERED))

@@ -18,6 +18,17 @@ def test_public_names_stay_functions_after_every_submodule_is_imported():
     assert callable(brdfjax.fit) and callable(brdfjax.reflectance)
 
 
+def test_submodules_come_on_first_use_like_the_names():
+    """The README's ``brdfjax.cache.enable()`` and ``brdfjax.models.available()`` after a
+    plain ``import brdfjax`` (they raised AttributeError)."""
+    code = ("import brdfjax; print(callable(brdfjax.cache.enable), brdfjax.models.available()[0],"
+            " callable(brdfjax.fit_per_incidence)); brdfjax.nothing")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=False)
+    assert done.stdout.split() == ["True", "five", "True"]
+    assert "AttributeError: module 'brdfjax' has no attribute 'nothing'" in done.stderr
+
+
 def test_import_brdfjax_loads_no_jax():
     code = "import sys, brdfjax; print('jax' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,

@@ -12,6 +12,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from brdfjax.angles import check_radians
+
 
 class DataError(ValueError):
     """Bad input data: says which file, which line, what is wrong and what to do."""
@@ -260,6 +262,21 @@ def validate(data: Measurements, path=None, lines=None,
         line = None if lines is None or index is None else int(lines[index])
         raise DataError(message, path, line, hint)
     return data
+
+
+def checked(data, what: str, geometry_only: bool = False) -> Measurements:
+    """``data`` `validate`-d for a library call named ``what``, which needs `Measurements`
+    (built in Python, they have not been through `brdfjax.load`'s checks)."""
+    if not isinstance(data, Measurements):
+        raise TypeError(f"{what} takes Measurements, got {type(data).__name__}: read a file "
+                        "with brdfjax.load(path), or build them with "
+                        "Measurements.from_degrees(theta_i, theta_r, phi_r, brdf)")
+    try:
+        check_radians(("phi_r",), theta_i=data.theta_i, theta_r=data.theta_r, phi_r=data.phi_r)
+    except ValueError as problem:
+        raise DataError(f"{problem} (Measurements.from_degrees takes degrees)",
+                        data.path) from None
+    return validate(data, data.path, geometry_only=geometry_only)
 
 
 def failures(samples) -> dict[int, str]:

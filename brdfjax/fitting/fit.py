@@ -21,7 +21,7 @@ import jax
 import numpy as np
 
 from brdfjax.cache import stage
-from brdfjax.data.measurements import DataError, Measurements, incidence_groups
+from brdfjax.data.measurements import DataError, Measurements, checked, incidence_groups
 from brdfjax.fitting.bounds import Bounds, default_bounds, from_unit, to_free, to_unit
 from brdfjax.fitting.evolve import EvolveConfig, EvolveResult, evolve
 from brdfjax.fitting.objective import (
@@ -123,8 +123,9 @@ class FitResult:
 
 def split(data: Measurements, validate_incidences_deg=None) -> tuple[Measurements, Measurements]:
     """Training and held-out subsets by incidence angle (degrees)."""
-    if not validate_incidences_deg:
+    if validate_incidences_deg is None or np.size(validate_incidences_deg) == 0:
         return data, data.select(np.zeros(len(data), dtype=bool))
+    validate_incidences_deg = np.atleast_1d(np.asarray(validate_incidences_deg, dtype=float))
     mask = data.incidence_mask(validate_incidences_deg)
     train, held = data.select(~mask), data.select(mask)
     missing = set(np.round(validate_incidences_deg, 6)) - set(held.incidences_deg)
@@ -173,6 +174,7 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
     """
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; choose one of {METHODS}")
+    checked(data, "fit")
     model = get(model, constants)
     bounds = default_bounds(model) if bounds is None else bounds
     check_bounds(bounds, model)
@@ -199,9 +201,14 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
         ahead = (_polish_ahead(search, bounds, population_size, starts, max_steps)
                  if method == "hybrid" else None)
         tic = time.perf_counter()
-        searched = evolve(seed, search, bounds, config, population_size=population_size,
-                          max_generations=max_generations)
-        searched.errors.block_until_ready()
+        try:
+            searched = evolve(seed, search, bounds, config, population_size=population_size,
+                              max_generations=max_generations)
+            searched.errors.block_until_ready()
+        except BaseException:
+            if ahead is not None:  # left compiling behind the error, it crashed at exit
+                ahead.join()
+            raise
         timings["evolve"] = time.perf_counter() - tic
         history, evaluations = search_summary(searched, population_size)
 

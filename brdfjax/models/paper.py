@@ -15,7 +15,7 @@ from __future__ import annotations
 import jax
 
 from brdfjax.angles import check_radians
-from brdfjax.models import get
+from brdfjax.models import model_for
 from brdfjax.models.base import array_module, as_vector
 from brdfjax.models.five import (
     PAPER_ERRORS_PERCENT,
@@ -73,16 +73,18 @@ def brdf(params, theta_i, theta_r, phi_r, constants=None, model=None) -> jax.Arr
         phi_r: reflection azimuth relative to the incident plane.
         constants: the shadowing constants of Eq. (3) (the paper's by default), for models
             with a G term.
-        model: a model name or `brdfjax.models.Model` (the five-parameter model if None).
+        model: a model name or `brdfjax.models.Model`; if None, the model whose named tuple
+            ``params`` is, and the five-parameter model for an array
+            (`brdfjax.models.model_for`, which refuses parameters of another model).
 
     Returns:
         f_r in 1/sr, finite with finite gradients on the whole hemisphere.
     """
-    model = get(model, constants)
+    model = model_for(params, model, constants)
     return evaluate(params, _geometry(model, theta_i, theta_r, phi_r), model)
 
 
 def projected_brdf(params, theta_i, theta_r, phi_r, constants=None, model=None) -> jax.Array:
     """``f_r cos(theta_r)``, the quantity fitted in Eq. (6) (arguments as `brdf`)."""
-    model = get(model, constants)
+    model = model_for(params, model, constants)
     return evaluate_projected(params, _geometry(model, theta_i, theta_r, phi_r), model)

@@ -154,6 +154,13 @@ def calibrate(data: Measurements, validation, *, discrepancy: str = "gp",
     return calibrate_all(data, [(validation, fitted)], discrepancy=discrepancy)[0]
 
 
+def check_discrepancy(discrepancy: str) -> None:
+    """Refuse a ``discrepancy`` other than `DISCREPANCIES`, before any work."""
+    if discrepancy not in DISCREPANCIES:
+        raise ValueError(f"unknown discrepancy {discrepancy!r}; choose one of "
+                         f"{', '.join(DISCREPANCIES)}")
+
+
 def calibrate_all(data: Measurements, validations: list, *,
                   discrepancy: str = "gp") -> list[Calibration]:
     """`calibrate` of several cross-validations of ``data`` (``[(validation, fitted)]``, one
@@ -162,9 +169,7 @@ def calibrate_all(data: Measurements, validations: list, *,
     Call it from one thread: XLA's LAPACK calls (the processes' Cholesky factorisations)
     can deadlock when several threads run them at once.
     """
-    if discrepancy not in DISCREPANCIES:
-        raise ValueError(f"unknown discrepancy {discrepancy!r}; choose one of "
-                         f"{', '.join(DISCREPANCIES)}")
+    check_discrepancy(discrepancy)
     floor = _floor(data)
     incidences = data.incidences_deg
     common = {"floor": floor, "low": float(incidences.min()),
@@ -356,7 +361,7 @@ class Prediction:
     """Predictions and predictive intervals at a list of geometries (arrays (M,)).
 
     Attributes:
-        theta_i, theta_r, phi_r: the geometry, degrees as given.
+        theta_i, theta_r, phi_r: the geometry in degrees (the `Measurements` given hold radians).
         brdf: the prediction (1/sr): the model corrected by the discrepancy, or the model.
         model_brdf: the fitted analytic model's BRDF alone.
         lo68, hi68, lo95, hi95: where a new measurement falls with 68.27 % and 95 %
@@ -433,8 +438,14 @@ def predict(result, geometry: Measurements, calibration: Calibration | None = No
     Returns:
         A `Prediction`.
     """
+    from brdfjax.data.measurements import checked
     from brdfjax.fitting.objective import brdf_values, prepare
 
+    if not hasattr(result, "training"):
+        raise TypeError(f"predict takes a fit's result (brdfjax.fit), got "
+                        f"{type(result).__name__}")
+    checked(geometry, "predict", geometry_only=True)
+    check_discrepancy(discrepancy)
     if calibration is None:
         from brdfjax.prediction.cross_validation import cross_validate
 

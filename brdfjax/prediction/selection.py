@@ -68,12 +68,14 @@ class ModelScore:
 
 @dataclass
 class Comparison:
-    """Every model's `ModelScore`, ranked by ``cv_error`` (lowest first)."""
+    """Every model's `ModelScore` (``scores``, in the order the models were asked for), and
+    their ranking by ``cv_error``."""
 
     scores: list
 
     @property
     def ranking(self) -> list:
+        """The model names, lowest cv_error first (`ranked`: ties go to fewer parameters)."""
         return ranked({s.name: s.cv_error for s in self.scores})
 
     @property
@@ -204,8 +206,8 @@ def compare_models(data: Measurements, models=None, *, seed: int = 0,
 
     Args:
         data: the measurements (at least three incidences, for the interior folds).
-        models: model names, sums such as ``ggx+backscatter`` included
-            (`DEFAULT_CANDIDATES` if None).
+        models: model names, sums such as ``ggx+backscatter`` included, or one string of
+            them separated by commas (`DEFAULT_CANDIDATES` if None).
         seed: the seed of every fit.
         progress: show a progress bar (tqdm) of the models done.
         discrepancy: ``gp`` also scores each model corrected by its learned discrepancy
@@ -214,10 +216,15 @@ def compare_models(data: Measurements, models=None, *, seed: int = 0,
     Returns:
         A `Comparison`.
     """
+    from brdfjax.data.measurements import checked
     from brdfjax.models import get
     from brdfjax.models.hemispherical import reflectance
     from brdfjax.prediction.cross_validation import cross_validate
-    from brdfjax.prediction.intervals import compile_corrected_cv_errors, corrected_cv_errors
+    from brdfjax.prediction.intervals import (
+        check_discrepancy,
+        compile_corrected_cv_errors,
+        corrected_cv_errors,
+    )
 
     def score(name: str) -> ModelScore:
         validation = cross_validate(data, name, seed=seed, full_fit=True)  # one batched call
@@ -228,8 +235,10 @@ def compare_models(data: Measurements, models=None, *, seed: int = 0,
         return ModelScore(name, result, validation, aic, bic,
                           {f"{d:g}": float(r) for d, r in zip(REFLECTANCE_INCIDENCES, rho)})
 
-    names = list(models or DEFAULT_CANDIDATES)
-    names = [get(name).name for name in names]  # an unknown name fails here, before any fit
+    checked(data, "compare_models")
+    check_discrepancy(discrepancy)
+    names = models.split(",") if isinstance(models, str) else list(models or DEFAULT_CANDIDATES)
+    names = [get(name.strip()).name for name in names]  # an unknown name fails here, first
     with (ThreadPoolExecutor(max_workers=os.cpu_count()) as pool,
           tqdm(total=len(names), desc="models", unit="model", disable=not progress) as bar):
         running = [pool.submit(score, name) for name in names]

@@ -18,7 +18,7 @@ import numpy as np
 
 from brdfjax.angles import check_degrees
 from brdfjax.cache import stage
-from brdfjax.models import Model, get
+from brdfjax.models import Model, model_for
 from brdfjax.models.hemispherical import reflectance
 from brdfjax.models.paper import evaluate_projected
 from brdfjax.plot import curve_angles
@@ -119,7 +119,7 @@ def curve_bands(samples, incidences_deg, *, count: int = 361, draws: int = CURVE
     incidences = [float(x) for x in np.atleast_1d(incidences_deg)]
     scans = [curve_angles(deg, count) for deg in incidences]
     angles = [np.concatenate([scan[0][k] for scan in scans]) for k in range(3)]
-    model = get(model, constants)
+    model = model_for(np.asarray(samples)[0], model, constants)
     geometry = model.geometry(*angles, in_plane=True)
     values = np.asarray(_curves(jnp.asarray(subsample(samples, draws, seed)), geometry, model))
     bands = quantile_bands(values.reshape(values.shape[0], len(incidences), count))
@@ -151,6 +151,6 @@ def reflectance_bands(samples, theta_i_deg, *, draws: int = REFLECTANCE_DRAWS, s
     samples = subsample(samples, draws, seed)
     theta = np.atleast_1d(np.asarray(theta_i_deg, dtype=float))
     values = np.asarray(_reflectances(jnp.asarray(samples), jnp.radians(theta),
-                                      get(model, constants)))
+                                      model_for(samples[0], model, constants)))
     return ReflectanceBands(theta, np.median(values, axis=0), np.std(values, axis=0, ddof=1),
                             *quantile_bands(values))

@@ -151,6 +151,11 @@ def _reader(path, options=()):
     """The reader module for a file: by suffix, and for text files by content; a
     `DataError` if it does not take one of the reader ``options`` given (``--blank`` for a
     CSV)."""
+    unknown = [name for name in options if name not in OPTION_FLAGS]
+    if unknown:
+        raise TypeError(f"unexpected reader option {unknown[0]!r}; the options are "
+                        f"{', '.join(f'{n}=' for n in OPTION_FLAGS)} (the command line's "
+                        f"{', '.join(OPTION_FLAGS.values())})")
     reader = _format_reader(path)
     taken = inspect.signature(reader.read).parameters
     for name in options:

@@ -126,7 +126,8 @@ def write_model_astm(path, params, incidences_deg, theta_r_deg=tuple(range(0, 90
             ``phi_r``, so 0 to 180 covers the hemisphere.
         sample: written as ``SAMPLE_NAME``.
         wavelength_nm: names the output column (``<nm>nm``) when given, else ``BRDF``.
-        model: a model name or `brdfjax.models.Model` (the five-parameter model if None).
+        model: a model name or `brdfjax.models.Model` (None: the model of a named tuple,
+            else the five-parameter model; `brdfjax.models.model_for`).
         correction: a learned discrepancy to apply
             (`brdfjax.prediction.discrepancy.Discrepancy`), or None.
     """
@@ -139,7 +140,7 @@ def write_model_astm(path, params, incidences_deg, theta_r_deg=tuple(range(0, 90
     keep = (theta_r > 0) | (phi_r == phi_r.min())
     theta_i, theta_r, phi_r = theta_i[keep], theta_r[keep], phi_r[keep] * (theta_r[keep] > 0)
     values = evaluate_model(params, theta_i, theta_r, phi_r, model, correction)
-    header = {SAMPLE_KEY: sample, "SOURCE": model_comment(model, correction),
+    header = {SAMPLE_KEY: sample, "SOURCE": model_comment(params, model, correction),
               "COMMENT": parameter_comment(params, model)}
     _write_table(path, header, *np.radians([theta_i, theta_r, phi_r]), values,
                  _output_name(wavelength_nm))

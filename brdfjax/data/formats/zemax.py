@@ -444,7 +444,8 @@ def write_model(path, params, incidences_deg, azimuths_deg=tuple(range(0, 181, 1
             as the hemisphere reaches, `hemisphere_radials`).
         sample: the name written in a ``# Sample:`` comment.
         wavelength_nm: recorded in a comment when given.
-        model: a model name or `brdfjax.models.Model` (the five-parameter model if None).
+        model: a model name or `brdfjax.models.Model` (None: the model of a named tuple,
+            else the five-parameter model; `brdfjax.models.model_for`).
         correction: a learned discrepancy to apply
             (`brdfjax.prediction.discrepancy.Discrepancy`), or None.
 
@@ -455,7 +456,7 @@ def write_model(path, params, incidences_deg, azimuths_deg=tuple(range(0, 181, 1
         radial_deg = hemisphere_radials(incidences_deg)
     incidences, azimuths, radials, table = model_table(
         params, incidences_deg, azimuths_deg, radial_deg, model, correction)
-    comments = [f"Sample: {sample}", model_comment(model, correction),
+    comments = [f"Sample: {sample}", model_comment(params, model, correction),
                 parameter_comment(params, model)]
     if wavelength_nm is not None:
         comments.append(f"wavelength_nm: {wavelength_nm:g}")
@@ -496,11 +497,11 @@ def evaluate_model(params, theta_i_deg, theta_r_deg, phi_r_deg, model=None,
     return values.reshape(shape)
 
 
-def model_comment(model=None, correction=None) -> str:
-    """Which model an export tabulates, for its header."""
-    from brdfjax.models import get
+def model_comment(params, model=None, correction=None) -> str:
+    """Which model an export of ``params`` tabulates, for its header."""
+    from brdfjax.models import model_for
 
-    model = get(model)
+    model = model_for(params, model)
     text = f"BRDF model {model.name} ({model.summary.split(':')[0]}), exported by brdfjax"
     if correction is not None:
         text += (", times its learned discrepancy (a Gaussian process of the log residual): "
@@ -510,11 +511,12 @@ def model_comment(model=None, correction=None) -> str:
 
 def parameter_comment(params, model=None) -> str:
     """``"parameters: kb=..., kr=..., ..."`` (the model's names) for an export's header."""
-    from brdfjax.models import get
+    from brdfjax.models import model_for
     from brdfjax.models.paper import as_vector
 
+    names = model_for(params, model).names
     vector = np.asarray(as_vector(params), dtype=float)
-    return "parameters: " + ", ".join(f"{n}={v:.8g}" for n, v in zip(get(model).names, vector))
+    return "parameters: " + ", ".join(f"{n}={v:.8g}" for n, v in zip(names, vector))
 
 
 def tis(table, incidence_deg, azimuths_deg, radial_deg) -> float:
