@@ -1,6 +1,8 @@
 """Eq. (9): against an independent integration of the transcription, the quadrature's
 nodes, its convergence, and the energy flag."""
 
+import warnings
+
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -9,6 +11,7 @@ import transcription
 from brdfjax.models.hemispherical import (
     AZIMUTH_NODES,
     RADIAL_NODES,
+    EnergyWarning,
     energy_warning,
     hemisphere_nodes,
     reflectance,
@@ -107,5 +110,9 @@ def test_coarse_grid_would_be_wrong():
 
 
 def test_energy_warning_flags_polyimide_only():
-    assert energy_warning(reflectance(PAPER_SAMPLES["polyimide"], INCIDENCES)) is not None
-    assert energy_warning(reflectance(PAPER_SAMPLES["white_paint"], INCIDENCES)) is None
+    with pytest.warns(EnergyWarning, match=r"reflectance up to 7\.6\d* > 1"):
+        rho = reflectance(PAPER_SAMPLES["polyimide"], INCIDENCES)  # said in Python too
+    assert energy_warning(rho) is not None
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert energy_warning(reflectance(PAPER_SAMPLES["white_paint"], INCIDENCES)) is None

@@ -18,13 +18,15 @@ incidence (the nodes alone integrate a constant to ``pi`` within 1e-4 up to 85 d
 
 from __future__ import annotations
 
+import warnings
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from brdfjax.angles import check_radians
 from brdfjax.cache import stage
-from brdfjax.models import Model, get
+from brdfjax.models import Model, model_for
 from brdfjax.models.base import array_module, as_vector
 from brdfjax.models.paper import evaluate
 
@@ -105,20 +107,27 @@ def reflectance(params, theta_i, constants=None, radial_nodes: int = RADIAL_NODE
         theta_i: incidence angle(s) in radians, any shape.
         constants: the shadowing constants of Eq. (3), for models with a G term.
         radial_nodes, azimuth_nodes: quadrature sizes (static).
-        model: a model name or `brdfjax.models.Model` (the five-parameter model if None).
+        model: a model name or `brdfjax.models.Model` (as for `brdfjax.models.paper.brdf`:
+            None takes the model of a named tuple, else the five-parameter model).
 
     Returns:
         rho with the shape of ``theta_i``. Values above 1 violate energy conservation:
-        see `energy_warning`.
+        an `EnergyWarning` says so (where rho is computed, not traced under jit or vmap).
     """
     check_radians(theta_i=theta_i)
     xp = array_module(theta_i)
     theta_i = xp.asarray(theta_i)
     if not xp.issubdtype(theta_i.dtype, xp.floating):  # float32 angles stay float32
         theta_i = theta_i.astype(float)
-    flat = _reflectance(params, theta_i.reshape(-1), get(model, constants),
+    flat = _reflectance(params, theta_i.reshape(-1), model_for(params, model, constants),
                         radial_nodes=radial_nodes, azimuth_nodes=azimuth_nodes)
+    if not isinstance(flat, jax.core.Tracer) and (text := energy_warning(flat)):
+        warnings.warn(text, EnergyWarning, stacklevel=2)
     return flat.reshape(theta_i.shape)
+
+
+class EnergyWarning(UserWarning):
+    """A reflectance above 1: the parameters create energy (`energy_warning`)."""
 
 
 def energy_warning(rho) -> str | None:
