@@ -60,6 +60,10 @@ def test_sums_follow_the_naming_and_shared_constant_rules():
     assert get("ggx+ggx").searched_size == 2 and get("ross-li").searched_size == 0
     with pytest.raises(ValueError, match="adds nothing"):
         get("ggx+lambert")
+    with pytest.raises(ValueError, match=r"'auto' is chosen by cross-validation on data: "
+                                         r"brdfjax fit and batch take it; in Python, "
+                                         r"brdfjax.compare_models\(data\).best.name"):
+        get("auto")  # the command line's word, said where it is taken
     with pytest.raises(ValueError, match="unknown model 'nope'"):
         get("ggx+nope")
 

@@ -73,6 +73,10 @@ def get(model: str | Model | None = None, constants=None) -> Model:
         from brdfjax.models.sum import Sum
 
         model = Sum(tuple(get(part.strip()) for part in model.split("+")))
+    if model == "auto":
+        raise ValueError("model 'auto' is chosen by cross-validation on data: brdfjax fit and "
+                         "batch take it; in Python, brdfjax.compare_models(data).best.name is "
+                         "the compact model, .predictor.name the one to predict with")
     if isinstance(model, str):
         registry = _discover()
         if model not in registry:
