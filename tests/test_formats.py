@@ -115,9 +115,10 @@ def test_errors_name_the_file_read_not_the_source_it_records(tmp_path, capsys):
     assert capsys.readouterr().err.startswith(f"brdfjax fit: error: {path}: held-out incidence")
     data = load(path)
     assert (data.path, data.metadata["source"]) == (str(path), "original.xls")
-    save(data, tmp_path / "again.csv")  # the path is the reader's, not written
-    assert "# path" not in (tmp_path / "again.csv").read_text()
-    assert load(tmp_path / "again.csv").path == str(tmp_path / "again.csv")
+    for name in ("again.csv", "again.astm"):  # the path is the reader's, not written
+        save(data, tmp_path / name)
+        assert str(path) not in (tmp_path / name).read_text()
+        assert load(tmp_path / name).path == str(tmp_path / name)
 
 
 def test_measurements_reject_mismatched_lengths():

@@ -66,9 +66,10 @@ class Measurements:
         brdf: measured BRDF in 1/sr, shape (N,).
         sigma: optional per-point standard uncertainty of ``brdf`` (1/sr), shape (N,).
         weights: optional per-point weights of Eq. (6) (g1 g2 of the paper), shape (N,).
-        metadata: sample name, wavelength, source and anything else worth keeping;
-            ``path`` is the file they were read from (set by `brdfjax.load`; a brdfjax CSV's
-            ``source`` line keeps where its data first came from).
+        metadata: sample name, wavelength, source and anything else worth keeping (a
+            brdfjax CSV's ``source`` line keeps where its data first came from).
+        path: the file they were read from (set by `brdfjax.load`; errors name it), None
+            for data made in memory.
     """
 
     theta_i: np.ndarray
@@ -78,6 +79,7 @@ class Measurements:
     sigma: np.ndarray | None = None
     weights: np.ndarray | None = None
     metadata: dict = field(default_factory=dict)
+    path: str | None = None
 
     def __post_init__(self):
         for name in ("theta_i", "theta_r", "phi_r", "brdf", "sigma", "weights"):
@@ -101,11 +103,6 @@ class Measurements:
     @property
     def name(self) -> str:
         return str(self.metadata.get("sample", "sample"))
-
-    @property
-    def path(self) -> str | None:
-        """The file these measurements were read from; None for data made in memory."""
-        return self.metadata.get("path")
 
     @property
     def incidences_deg(self) -> np.ndarray:

@@ -14,6 +14,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import inspect
 import json
 import math
@@ -46,9 +47,8 @@ def load(path, **options) -> Measurements:
 
 
 def _read_from(path, data: Measurements) -> Measurements:
-    """``data`` with the file it was read from (``metadata["path"]``: errors name it)."""
-    data.metadata["path"] = str(path)
-    return data
+    """``data`` with the file it was read from (`Measurements.path`: errors name it)."""
+    return dataclasses.replace(data, path=str(path))
 
 
 def load_geometry(path, **options) -> Measurements:

@@ -100,7 +100,7 @@ def write(data: Measurements, path) -> None:
         columns["sigma"] = data.sigma
     if data.weights is not None:
         columns["weight"] = data.weights
-    lines = [f"# {k}: {v}" for k, v in data.metadata.items() if k != "path"]
+    lines = [f"# {k}: {v}" for k, v in data.metadata.items()]
     lines.append(",".join(columns))
     table = np.stack(list(columns.values()), axis=1)
     lines += [",".join(f"{x:.10g}" for x in row) for row in table]

@@ -136,7 +136,7 @@ class Cube:
                 *(a[keep] for a in angles), brdf[keep],
                 sigma=None if sigma is None else sigma[row][keep],
                 metadata={"sample": self.name(int(index)), "source": str(self.path),
-                          "path": str(self.path), "index": int(index)}))
+                          "index": int(index)}, path=str(self.path)))
         return samples
 
     def close(self) -> None:
