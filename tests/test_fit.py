@@ -454,9 +454,14 @@ def test_a_single_held_out_incidence_needs_no_list(white_paint):
 
 def test_a_fit_that_raises_leaves_no_compilation_running(white_paint):
     """The polish compiled ahead in a thread was left running after the search refused its
-    arguments: at the end of a script, the process crashed at exit (1 run in 8)."""
+    arguments: at the end of a script, the process crashed at exit (1 run in 8). A size is
+    refused before the thread starts; an error inside the search waits for it."""
     import threading
 
     with pytest.raises(ValueError, match="population_size 12 is not a multiple of islands 8"):
         fit(white_paint, population_size=12)
+    assert "brdfjax polish compiled ahead" not in [t.name for t in threading.enumerate()]
+    with pytest.raises(TypeError, match="the seed must be an integer or a JAX PRNG key, "
+                                        "got a float64"):
+        fit(white_paint, seed=1.5, population_size=48)  # sizes not compiled ahead before
     assert "brdfjax polish compiled ahead" not in [t.name for t in threading.enumerate()]

@@ -97,6 +97,18 @@ def score_population(z, prob: Problem, bounds: Bounds) -> tuple[jax.Array, jax.A
     return z, jnp.where(jnp.isnan(values), jnp.inf, values)
 
 
+def check_population(population_size: int, islands: int = 8, elite_count: int = 4) -> None:
+    """Refuse a population `evolve` cannot split into islands that breed."""
+    if population_size % islands:
+        raise ValueError(f"population_size {population_size} is not a multiple of "
+                         f"islands {islands}")
+    if population_size // islands <= elite_count:
+        raise ValueError(f"population_size {population_size} leaves {population_size // islands}"
+                         f" members to each of {islands} islands, all kept as elite "
+                         f"(elite_count {elite_count}): nothing would be bred; give at least "
+                         f"{islands * (elite_count + 1)}")
+
+
 @stage(static_argnames=("population_size", "islands", "max_generations", "elite_count",
                         "tournament_size", "patience", "precision"))
 def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = None, *,
@@ -126,15 +138,13 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
         ``population_size // islands`` rows, each block sorted best first and the blocks
         ordered by their best (row 0 is the best member), returned in the problem's dtype.
     """
-    if population_size % islands:
-        raise ValueError(f"population_size {population_size} is not a multiple of "
-                         f"islands {islands}")
-    if population_size // islands <= elite_count:
-        raise ValueError(f"population_size {population_size} leaves {population_size // islands}"
-                         f" members to each of {islands} islands, all kept as elite "
-                         f"(elite_count {elite_count}): nothing would be bred; give at least "
-                         f"{islands * (elite_count + 1)}")
+    check_population(population_size, islands, elite_count)
     config = EvolveConfig() if config is None else config
+    if key is None or (jnp.ndim(key) == 0 and not any(
+            jnp.issubdtype(jnp.result_type(key), kind)
+            for kind in (jnp.integer, jax.dtypes.prng_key))):
+        raise TypeError("the seed must be an integer or a JAX PRNG key, got "
+                        + ("None" if key is None else f"a {jnp.result_type(key)}"))
     if jnp.ndim(key) == 0 and jnp.issubdtype(jnp.result_type(key), jnp.integer):
         key = jax.random.key(key)
     elif not jax.dtypes.issubdtype(jnp.result_type(key), jax.dtypes.prng_key):

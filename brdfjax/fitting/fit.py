@@ -23,7 +23,7 @@ import numpy as np
 from brdfjax.cache import stage
 from brdfjax.data.measurements import DataError, Measurements, checked, incidence_groups
 from brdfjax.fitting.bounds import Bounds, default_bounds, from_unit, to_free, to_unit
-from brdfjax.fitting.evolve import EvolveConfig, EvolveResult, evolve
+from brdfjax.fitting.evolve import EvolveConfig, EvolveResult, check_population, evolve
 from brdfjax.fitting.objective import (
     Problem,
     prepare,
@@ -198,6 +198,7 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
         steps, success = np.asarray(polished.steps), np.asarray(polished.success)
         method_ran = "solve"
     elif method != "lm":
+        check_population(population_size)  # before the polish is compiled ahead for it
         ahead = (_polish_ahead(search, bounds, population_size, starts, max_steps)
                  if method == "hybrid" else None)
         tic = time.perf_counter()
@@ -205,7 +206,7 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
             searched = evolve(seed, search, bounds, config, population_size=population_size,
                               max_generations=max_generations)
             searched.errors.block_until_ready()
-        except BaseException:
+        except Exception:  # not Ctrl-C: that would wait for the whole compile-ahead
             if ahead is not None:  # left compiling behind the error, it crashed at exit
                 ahead.join()
             raise
