@@ -12,6 +12,7 @@ and the posterior's corner plot (`plot_corner`, with the ``corner`` package).
 
 from __future__ import annotations
 
+import functools
 import textwrap
 
 import numpy as np
@@ -487,17 +488,20 @@ def plot_band_widths(bands, path, title: str = "", held_out=()):
 
 def same_curves(names, curves, count: int, rtol: float = 1e-3) -> dict:
     """The first ``count`` distinct curves among ``names`` (in rank order): ``{drawn name:
-    [it, then the names whose curves lie within rtol of its peak]}``, drawn as one, by the
-    model of the fewest parameters among them. Two models can fit alike (ggx+backscatter
-    with its lobe switched off is ggx): drawn apart, the later curve hides the earlier.
-    ``curves(name)`` gives a model's values."""
+    [it, then the names whose curves lie within rtol of its own in every panel, relative to
+    the panel's peak]}``, drawn as one, by the model of the fewest parameters among them.
+    Two models can fit alike (ggx+backscatter with its lobe switched off is ggx): drawn
+    apart, the later curve hides the earlier. ``curves(name)`` gives a model's values, a
+    list of one array per panel."""
     from brdfjax.models import get
+
+    def alike(a, b):
+        return all(np.max(np.abs(x - y)) <= rtol * np.max(np.abs(y)) for x, y in zip(a, b))
 
     groups, values = {}, {}
     for name in names:
         values[name] = curves(name)
-        twin = next((g for g in groups if np.max(np.abs(values[name] - values[g]))
-                     <= rtol * np.max(np.abs(values[g]))), None)
+        twin = next((g for g in groups if alike(values[name], values[g])), None)
         if twin is not None:
             groups[twin].append(name)
         elif len(groups) < count:
@@ -532,15 +536,17 @@ def plot_models(data, comparison, path, title: str = "", max_panels: int = 6,
     scores = {s.name: s for s in comparison.scores}
     panel_angles = [curve_angles((fold.low + fold.high) / 2) for fold in panels]
 
-    def curves(name):  # the fit on all incidences, over every panel
+    @functools.cache
+    def curves(name):  # the fit on all incidences, in every panel
         fit = scores[name].fit
-        return np.concatenate([np.asarray(projected_brdf(fit.vector, *angles, model=fit.model))
-                               for angles, _ in panel_angles])
+        return [np.asarray(projected_brdf(fit.vector, *angles, model=fit.model))
+                for angles, _ in panel_angles]
 
     shown = same_curves(comparison.ranking, curves, max_models)
     if "five" in scores and not any("five" in group for group in shown.values()):
         shown |= same_curves(["five"], curves, 1)
-    for ax, fold, (angles, signed) in zip(axes.ravel(), panels, panel_angles):
+    for panel, (ax, fold, (angles, signed)) in enumerate(zip(axes.ravel(), panels,
+                                                             panel_angles)):
         subset = data.at_incidences([fold.low]) if fold.low == fold.high else data.select(
             (np.degrees(data.theta_i) >= fold.low) & (np.degrees(data.theta_i) <= fold.high))
         ax.plot(signed_angle_deg(subset), subset.brdf * np.cos(subset.theta_r), "o", ms=2.5,
@@ -550,9 +556,7 @@ def plot_models(data, comparison, path, title: str = "", max_panels: int = 6,
             held = next(f for f in score.validation.folds if f.label == fold.label)
             colour = colours(k % 10)
             same = f"; {', '.join(twins[1:])} the same" if len(twins) > 1 else ""
-            ax.plot(signed, np.asarray(projected_brdf(score.fit.vector, *angles,
-                                                      model=score.fit.model)),
-                    "-", color=colour, lw=1.2,
+            ax.plot(signed, curves(name)[panel], "-", color=colour, lw=1.2,
                     label=f"{name} (held-out E {100 * held.held_error:.3g} %{same})")
             ax.plot(signed, np.asarray(projected_brdf(held.params, *angles,
                                                       model=score.fit.model)),

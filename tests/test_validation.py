@@ -314,10 +314,11 @@ def test_the_models_plot_draws_models_that_fit_alike_once():
     ggx = (2.424, 0.3534, 0.04117, 1e-8)
     fits = {"ggx+backscatter": (*ggx, 1e-10, 0.002), "beckmann": (0.8968, 0.2858, 0.07, 0.0018),
             "ggx": ggx, "lambert": (0.05,)}
-    angles, _ = curve_angles(30.0)
+    panels = [curve_angles(incidence)[0] for incidence in (10.0, 30.0, 80.0)]
 
     def curves(name):
-        return np.asarray(projected_brdf(np.array(fits[name]), *angles, model=name))
+        return [np.asarray(projected_brdf(np.array(fits[name]), *angles, model=name))
+                for angles in panels]
 
     names = list(fits)
     assert same_curves(names, curves, 2) == {"ggx": ["ggx", "ggx+backscatter"],
@@ -326,6 +327,15 @@ def test_the_models_plot_draws_models_that_fit_alike_once():
     assert list(same_curves(names, curves, 3)) == ["ggx", "beckmann", "lambert"]
     fits["ggx+backscatter"] = (*ggx, 0.01, 0.2)  # a lobe 0.2 % of the peak: its own curve
     assert list(same_curves(names, curves, 3)) == ["ggx+backscatter", "beckmann", "ggx"]
+    # alike to 0.1 % of the brightest panel's peak, not of the dim panel's own: apart
+    fits["ggx+backscatter"] = (*ggx, 1e-4, 0.5)
+    ratio = [np.max(np.abs(a - b)) / np.max(np.abs(b)) for a, b in
+             zip(curves("ggx+backscatter"), curves("ggx"))]
+    brightest = max(np.max(np.abs(b)) for b in curves("ggx"))
+    assert min(ratio) < 1e-3 < max(ratio)
+    assert max(np.max(np.abs(a - b)) for a, b in zip(curves("ggx+backscatter"),
+                                                     curves("ggx"))) < 1e-3 * brightest
+    assert list(same_curves(names, curves, 4))[:3] == ["ggx+backscatter", "beckmann", "ggx"]
 
 
 def test_model_auto_predicts_with_the_model_best_corrected(monkeypatch, capsys):
