@@ -61,7 +61,7 @@ TRUTHS = {
     # an anodize's per-incidence fit, Ross-Li of a bright soil, and the three sums. Ross-Li's
     # sparse kernel is negative: (0.3, 0.1, 0.05), the truth until 2026-12-06, reached -71 %
     # of the peak at this geometry's grazing angles, data that fit() now refuses as load()
-    # and fit_batch do; (0.3, 0.2, 0.005) stays above 19 % of it.
+    # and fit_batch do; (0.3, 0.2, 0.005) stays above 18 % of it.
     "backscatter": (0.02, 0.1),
     "abg": (0.012, 0.3, 1.9),
     "ross-li": (0.3, 0.2, 0.005),

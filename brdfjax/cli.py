@@ -48,11 +48,9 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-# Warnings for developers, not for someone running a command; and reflectance above 1,
-# which the commands report in their own words (`brdfjax.models.hemispherical`).
+# Warnings for developers, not for someone running a command.
 SILENT_WARNINGS = (DeprecationWarning, PendingDeprecationWarning, ImportWarning,
                    ResourceWarning, FutureWarning)
-SAID_ELSEWHERE = ("EnergyWarning",)
 
 
 def main(argv=None) -> int:
@@ -120,8 +118,7 @@ def _run_quietly(args) -> int:
     caught = {}
 
     def keep(message, category, filename, lineno, file=None, line=None):
-        if not (issubclass(category, SILENT_WARNINGS)  # one line per distinct text
-                or category.__name__ in SAID_ELSEWHERE):
+        if not issubclass(category, SILENT_WARNINGS):  # one line per distinct text
             caught.setdefault(str(message).splitlines()[0], category)
 
     with warnings.catch_warnings():

@@ -55,11 +55,12 @@ def independent_rho(params, degrees):
 
 def test_reflectance_flags_energy_creation(capsys):
     assert main(["reflectance", "--params", "polyimide", "--theta-i", "0"]) == 0
-    out = capsys.readouterr().out
+    out, err = capsys.readouterr()
     (printed,) = numbers(r"^0,([0-9.]+)$", out)
     expected = independent_rho(PAPER_SAMPLES["polyimide"], [0.0])[0]  # 7.60873...
     assert printed == pytest.approx(expected, rel=1e-6, abs=5e-7)  # %.6f
     assert f"warning: reflectance up to {expected:.3f} > 1" in out
+    assert err == ""  # said once, not again as Python's EnergyWarning
     # the model's parameter count is checked once the model is known: a user error, exit 1
     assert main(["reflectance", "--params", "1,2"]) == 1
     assert "give 5 numbers kb,kr,a,b,kd for the five model" in capsys.readouterr().err
@@ -118,7 +119,8 @@ def test_demo_reproduces_the_papers_white_paint(tmp_path, capsys):
 
 def test_fit_summary_flags_a_fit_that_creates_energy(capsys):
     assert main(["fit", str(DATA / "synthetic" / "polyimide.csv"), "--uncertainty", "none"]) == 0
-    out = capsys.readouterr().out
+    out, err = capsys.readouterr()
+    assert "EnergyWarning" not in err  # said once, in the summary
     # The printed rho of the printed (6-digit) parameters, against the independent integral.
     params = [numbers(rf"^ +{k} = +(\S+)", out)[0] for k in ("kb", "kr", "a", "b", "kd")]
     rho = numbers(r"reflectance rho\(0, 30, 60 deg\) = (\S+), (\S+), (\S+)$", out)

@@ -75,7 +75,7 @@ def run_reflectance(args) -> None:
     from brdfjax.models.hemispherical import energy_warning, reflectance
 
     rho = np.asarray(reflectance(parameters(args.params, args.model), np.radians(args.theta_i),
-                                 model=args.model))
+                                 model=args.model, warn=False))
     print("theta_i,reflectance")
     for t, r in zip(args.theta_i, rho):
         print(f"{t:g},{r:.6f}")

@@ -650,7 +650,7 @@ def summary(result, name: str) -> str:
         lines.append(f"  held out: E = {100 * result.validation_error:.4g} %")
         lines += incidence_lines(result.validation_by_incidence, result)
     rho = np.asarray(reflectance(result.params, np.radians(SUMMARY_INCIDENCES),
-                                 model=result.model))
+                                 model=result.model, warn=False))
     lines.append("  reflectance rho(" + ", ".join(f"{x:g}" for x in SUMMARY_INCIDENCES)
                  + " deg) = " + ", ".join(f"{r:.4f}" for r in rho))
     warning = energy_warning(rho)
@@ -741,7 +741,7 @@ def run_demo(args) -> None:
     print("Reflectance rho(theta_i) of Eq. (9) for the paper's parameters")
     print(f"  {'sample':<14} {'0 deg':>8} {'30 deg':>8} {'60 deg':>8}")
     for name, params in PAPER_SAMPLES.items():
-        rho = np.asarray(reflectance(params, np.radians([0.0, 30.0, 60.0])))
+        rho = np.asarray(reflectance(params, np.radians([0.0, 30.0, 60.0]), warn=False))
         flag = "   > 1: not energy-conserving" if energy_warning(rho) else ""
         print(f"  {name:<14} " + " ".join(f"{r:8.4f}" for r in rho) + flag)
 
@@ -757,7 +757,7 @@ def run_demo(args) -> None:
     print(f"  E (fit)      {100 * result.error:8.4f} %   paper (real data) "
           f"{PAPER_ERRORS_PERCENT['white_paint']} %")
     print(f"  E (held out) {100 * result.validation_error:8.4f} %")
-    rho0 = float(reflectance(result.params, 0.0))
+    rho0 = float(reflectance(result.params, 0.0, warn=False))
     print(f"  rho(0 deg)   {100 * rho0:8.2f} %   paper 73.4 % (integrating sphere 79.6 %)")
     print(f"  status {result.status}; fit took {1e3 * result.timings['total']:.0f} ms "
           + (f"(including {compiled} XLA compilations, which later runs load from "

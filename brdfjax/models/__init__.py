@@ -116,9 +116,15 @@ def model_for(params, model: str | Model | None = None, constants=None) -> Model
                                                                       model.names):
         raise ValueError(f"{type(params).__name__}({', '.join(params._fields)}) are not the "
                          f"parameters of {model.name} ({', '.join(model.names)}): {hint}")
-    shape = np.shape(params)  # a traced array's too
-    if not named and (len(shape) == 0 or shape[0] != model.size):
+    if named:
+        return model
+    if isinstance(params, list | tuple):  # it may hold tracers (jit, grad): no np.shape
+        count = len(params)
+    else:
+        shape = np.shape(params)  # an array's, traced or not
+        count = shape[0] if shape else None
+    if count != model.size:
         raise ValueError(f"{model.name} takes {model.size} parameters "
-                         f"({', '.join(model.names)}) along the first axis, got an array of "
-                         f"shape {tuple(shape)}: {hint}")
+                         f"({', '.join(model.names)}) along the first axis, got "
+                         f"{'a scalar' if count is None else count}: {hint}")
     return model

@@ -63,10 +63,11 @@ def array_module(*values):
 
 
 def as_vector(params):
-    """A parameter vector (last axis: the model's parameters) from a named tuple or array."""
+    """A parameter vector (first axis: the model's parameters, as every model reads it) from
+    a named tuple or array; a named tuple of arrays (N,) gives (P, N), N parameter sets."""
     if isinstance(params, tuple):  # a model's Params named tuple
         xp = array_module(*params)
-        return xp.stack([xp.asarray(x) for x in params], axis=-1)
+        return xp.stack([xp.asarray(x) for x in params], axis=0)
     return array_module(params).asarray(params)
 
 

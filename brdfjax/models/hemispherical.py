@@ -98,7 +98,8 @@ def _rho_one(params, theta_i, model, radial_nodes, azimuth_nodes):
 
 
 def reflectance(params, theta_i, constants=None, radial_nodes: int = RADIAL_NODES,
-                azimuth_nodes: int = AZIMUTH_NODES, model: str | Model | None = None):
+                azimuth_nodes: int = AZIMUTH_NODES, model: str | Model | None = None,
+                warn: bool = True):
     """Directional-hemispherical reflectance rho(theta_i) of Eq. (9).
 
     Args:
@@ -109,6 +110,7 @@ def reflectance(params, theta_i, constants=None, radial_nodes: int = RADIAL_NODE
         radial_nodes, azimuth_nodes: quadrature sizes (static).
         model: a model name or `brdfjax.models.Model` (as for `brdfjax.models.paper.brdf`:
             None takes the model of a named tuple, else the five-parameter model).
+        warn: give an `EnergyWarning` where rho > 1 (False: the caller reports it itself).
 
     Returns:
         rho with the shape of ``theta_i``. Values above 1 violate energy conservation:
@@ -121,7 +123,7 @@ def reflectance(params, theta_i, constants=None, radial_nodes: int = RADIAL_NODE
         theta_i = theta_i.astype(float)
     flat = _reflectance(params, theta_i.reshape(-1), model_for(params, model, constants),
                         radial_nodes=radial_nodes, azimuth_nodes=azimuth_nodes)
-    if not isinstance(flat, jax.core.Tracer) and (text := energy_warning(flat)):
+    if warn and not isinstance(flat, jax.core.Tracer) and (text := energy_warning(flat)):
         warnings.warn(text, EnergyWarning, stacklevel=2)
     return flat.reshape(theta_i.shape)
 
@@ -133,7 +135,7 @@ class EnergyWarning(UserWarning):
 def energy_warning(rho) -> str | None:
     """A sentence for users when any reflectance exceeds 1, else None."""
     rho = np.asarray(rho)
-    if np.all(rho <= 1.0):
+    if not np.any(rho > 1.0):  # NaN is not above 1
         return None
-    return (f"reflectance up to {rho.max():.3f} > 1: these parameters create energy "
+    return (f"reflectance up to {np.nanmax(rho):.3f} > 1: these parameters create energy "
             "(the surface reflects more than it receives); the fit is not physical")

@@ -67,8 +67,11 @@ class _Layout(NamedTuple):
 
 
 @functools.cache
-def _params_type(names: tuple) -> type:
-    return collections.namedtuple("SumParams", names, rename=True)
+def _params_type(sum_name: str, names: tuple) -> type:
+    """The named tuple of one sum's parameters, named after the sum (``ggx+backscatter``:
+    ``GgxPlusBackscatterParams``), so that another sum's of the same names is told apart."""
+    title = "Plus".join(part.title().replace("-", "") for part in sum_name.split("+"))
+    return collections.namedtuple(f"{title}Params", names, rename=True)
 
 
 @dataclass(frozen=True)
@@ -111,7 +114,7 @@ class Sum(Model):
 
     @property
     def Params(self) -> type:
-        return _params_type(self.names)
+        return _params_type(self.name, self.names)
 
     @property
     def constant(self):

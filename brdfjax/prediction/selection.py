@@ -231,7 +231,7 @@ def compare_models(data: Measurements, models=None, *, seed: int = 0,
         result = validation.full
         aic, bic = information_criteria(result, data)
         rho = np.asarray(reflectance(result.params, np.radians(REFLECTANCE_INCIDENCES),
-                                     model=result.model))
+                                     model=result.model, warn=False))  # in the table
         return ModelScore(name, result, validation, aic, bic,
                           {f"{d:g}": float(r) for d, r in zip(REFLECTANCE_INCIDENCES, rho)})
 

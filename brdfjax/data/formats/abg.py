@@ -72,7 +72,7 @@ def abg_rows(per_incidence) -> list[AbgRow]:
         if result.model.name != "abg":
             raise ValueError(f"ABg export needs fits of the abg model, not {result.model.name}")
         a, b, g = (float(x) for x in result.vector)
-        tis = float(reflectance(result.vector, np.radians(degrees), model="abg"))
+        tis = float(reflectance(result.vector, np.radians(degrees), model="abg", warn=False))
         rows.append(AbgRow(float(degrees), a, b, g, float(result.error), tis,
                            float(np.pi * a / b) if b > 0 else float("inf"),
                            bool(a >= 0 and (b > ZEMAX_MIN_B or g == 0))))
