@@ -114,6 +114,12 @@ def test_discrepancy_of_an_exact_model_is_noise(white_paint):
     assert np.mean(np.abs(correction)) < 0.025
     assert np.median(prediction.half_width()) < 1.5 * 1.96 * 0.025
     assert 0.85 <= prediction.coverage("95") <= 1.0
+    # A second prediction from the same fit reuses its calibration (no second
+    # cross-validation), and gives the same intervals where the geometry is the same.
+    (kept,) = result.calibrations.values()
+    again = predict(result, data.at_incidences([30.0, 45.0]))
+    assert list(result.calibrations.values()) == [kept]
+    np.testing.assert_array_equal(again.hi95[:len(prediction.hi95)], prediction.hi95)
 
 
 def test_prediction_says_where_extrapolation_is_not_calibrated(ggx_data, ggx_validation,

@@ -71,6 +71,8 @@ class FitResult:
         training: the measurements fitted (for cross-validation and predictions), with the
             weights of the loss.
         loss: what the fit minimised (`brdfjax.fitting.objective.with_loss`).
+        calibrations: the conformal calibrations `brdfjax.predict` computed for this fit,
+            by (discrepancy, seed): a later prediction from the same fit reuses them.
     """
 
     params: tuple
@@ -94,6 +96,7 @@ class FitResult:
     message: str = ""
     training: Measurements | None = field(default=None, repr=False)
     loss: str = "eq6"
+    calibrations: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def vector(self) -> np.ndarray:

@@ -428,9 +428,10 @@ def predict(result, geometry: Measurements, calibration: Calibration | None = No
         result: a `brdfjax.fitting.fit.FitResult` (its model, bounds and training data are used).
         geometry: where to predict (a `Measurements`; its BRDF, if any, is reported as
             ``measured``; a geometry-only file has NaN there).
-        calibration: conformal scores; computed by
+        calibration: conformal scores; if None, computed by
             `brdfjax.prediction.cross_validation.cross_validate` of the fit's training data
-            if None (all folds in one batched fit).
+            (all folds in one batched fit) once per fit, discrepancy and seed, and kept in
+            ``result.calibrations``: predicting elsewhere from the same fit reuses them.
         discrepancy: ``gp`` (model times the learned correction, the default) or ``none``
             (the model alone); ignored when ``calibration`` is given (it carries its kind).
         seed: the seed of the cross-validation fits.
@@ -446,13 +447,15 @@ def predict(result, geometry: Measurements, calibration: Calibration | None = No
                         f"{type(result).__name__}")
     checked(geometry, "predict", geometry_only=True)
     check_discrepancy(discrepancy)
-    if calibration is None:
+    if calibration is None and (discrepancy, seed) not in result.calibrations:
         from brdfjax.prediction.cross_validation import cross_validate
 
         validation = cross_validate(result.training, result.model, seed=seed,
                                     bounds=result.bounds)
-        calibration = calibrate(result.training, validation, discrepancy=discrepancy,
-                                fitted=result.vector)
+        result.calibrations[discrepancy, seed] = calibrate(
+            result.training, validation, discrepancy=discrepancy, fitted=result.vector)
+    if calibration is None:
+        calibration = result.calibrations[discrepancy, seed]
     values = np.asarray(brdf_values(result.vector, prepare(geometry, result.model),
                                     result.model))
     incidence = np.degrees(geometry.theta_i)
