@@ -155,7 +155,8 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
     """Fit a model (the five-parameter model by default) by minimising E of Eq. (6).
 
     Args:
-        data: the measurements.
+        data: the measurements (checked as `brdfjax.load` checks a file's: angles in
+            radians, finite values, no outliers or negative values beyond noise).
         method: ``hybrid`` (genetic search then LM), ``ga`` or ``lm``.
         model: a name of `brdfjax.models.available` or a `brdfjax.models.Model`.
         seed: seeds every random choice; the same seed gives the same result.

@@ -94,8 +94,9 @@ def model_for(params, model: str | Model | None = None, constants=None) -> Model
     Args:
         params: a model's named tuple (a fit's ``result.params``), or an array whose first
             axis is the parameters.
-        model: as for `get`; None takes the model whose named tuple ``params`` is, and the
-            default for an array.
+        model: as for `get`; None takes the single model whose named tuple ``params`` is
+            (a sum's parameters need ``model=``, e.g. ``result.model``), and the default
+            for an array.
         constants: as for `get`.
 
     Raises:
@@ -109,7 +110,7 @@ def model_for(params, model: str | Model | None = None, constants=None) -> Model
                      None)
         if model is None:
             raise ValueError(f"{type(params).__name__}({', '.join(params._fields)}) belong to "
-                             "no single model (a sum's?): pass model=, e.g. result.model")
+                             "no single model (a sum's): pass model=, e.g. result.model")
     model = get(model, constants)
     hint = "pass model= the model they were fitted with (result.model)"
     if named and (type(params).__name__, tuple(params._fields)) != (model.Params.__name__,
