@@ -465,3 +465,20 @@ def test_a_fit_that_raises_leaves_no_compilation_running(white_paint):
                                         "got a float64"):
         fit(white_paint, seed=1.5, population_size=48)  # sizes not compiled ahead before
     assert "brdfjax polish compiled ahead" not in [t.name for t in threading.enumerate()]
+
+
+def test_arguments_of_the_wrong_shape_or_order_are_said(white_paint):
+    """Each ended in a NumPy broadcast error or a bare TypeError (a newcomer's review)."""
+    from brdfjax.fitting.batch import fit_batch
+    from brdfjax.uncertainty.laplace import laplace_approximation
+
+    with pytest.raises(ValueError, match=r"start: give 5 parameters of the five model \(kb, "
+                                         r"kr, a, b, kd\), or \(S, 5\) for S starts; got "
+                                         r"shape \(3,\)"):
+        fit(white_paint, method="lm", start=[1.0, 2.0, 3.0])
+    with pytest.raises(ValueError, match="3 seeds for 2 samples: give one seed, or one per"):
+        fit_batch([white_paint, white_paint], seed=[1, 2, 3])
+    result = fit(white_paint, method="lm", start=np.array(PAPER_SAMPLES["white_paint"]),
+                 max_steps=5)
+    with pytest.raises(TypeError, match=r"the measurements come first, then the fit"):
+        laplace_approximation(result, white_paint)

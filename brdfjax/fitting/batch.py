@@ -177,6 +177,9 @@ def fit_batch(samples: Sequence[Measurements], *, model: str | Model | None = No
     options = {**FIT_DEFAULTS, **options}
     model = get(model, options.pop("constants"))
     config = options.pop("config")
+    if np.ndim(seed) and np.size(seed) != len(samples):
+        raise ValueError(f"{np.size(seed)} seeds for {len(samples)} samples: give one seed, "
+                         "or one per sample")
     seeds = np.broadcast_to(np.asarray(seed, dtype=np.int64), (len(samples),))
     bounds = default_bounds(model) if bounds is None else bounds
     check_bounds(bounds, model)

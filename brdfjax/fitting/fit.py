@@ -163,8 +163,9 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
         validate_incidences_deg: incidence angles (deg) held out of the fit and scored after.
         bounds: the search box (the model's `brdfjax.fitting.bounds.default_bounds` if None).
         start: for ``lm``, starting parameters (P,) or (S, P); random starts if None.
-        starts: how many distinct GA members LM polishes (besides the model's extra
-            starts), or how many random starts for ``lm``.
+        starts: how many distinct GA members LM polishes (a multiple of the genetic
+            search's 8 islands; besides the model's extra starts), or how many random starts
+            for ``lm``.
         population_size, max_generations: genetic-search sizes.
         max_steps: LM step cap per start.
         config: genetic-search rates (defaults if None).
@@ -235,7 +236,7 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
                 polished = polish(to_free(winner[None], bounds), prob, bounds,
                                   max_steps=max_steps)
         else:
-            polished = polish(_lm_starts(start, starts, seed, bounds), prob, bounds,
+            polished = polish(_lm_starts(start, starts, seed, bounds, model), prob, bounds,
                               max_steps=max_steps)
         polished.errors.block_until_ready()
         timings["polish"] = time.perf_counter() - tic
@@ -384,12 +385,17 @@ def polish_summary(polished: PolishResult) -> tuple[np.ndarray, str, int]:
     return best, status, np.asarray(polished.evaluations)
 
 
-def _lm_starts(start, count, seed, bounds):
+def _lm_starts(start, count, seed, bounds, model):
     """Unconstrained LM starts: the given parameters, or ``count`` random points of the box."""
     if start is None:
         unit = np.random.default_rng(seed).uniform(size=(count, bounds.lower.size))
         return to_free(from_unit(unit, bounds), bounds)
-    return to_free(np.atleast_2d(np.asarray(start, dtype=float)), bounds)
+    starts = np.atleast_2d(np.asarray(start, dtype=float))
+    if starts.ndim != 2 or starts.shape[1] != model.size:
+        raise ValueError(f"start: give {model.size} parameters of the {model.name} model "
+                         f"({', '.join(model.names)}), or (S, {model.size}) for S starts; got "
+                         f"shape {np.shape(start)}")
+    return to_free(starts, bounds)
 
 
 def check_bounds(bounds: Bounds, model: Model) -> None:

@@ -31,7 +31,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from brdfjax.data.measurements import Measurements
+from brdfjax.data.measurements import Measurements, checked
 from brdfjax.fitting.bounds import Bounds, default_bounds, from_unit
 from brdfjax.fitting.fit import FitResult, split
 from brdfjax.fitting.objective import prepare
@@ -133,6 +133,10 @@ def training_setup(data: Measurements, fit, bounds: Bounds | None = None,
     Returns:
         The `Posterior` of the training points and the starting parameters (P,).
     """
+    if isinstance(data, FitResult):
+        raise TypeError("the measurements come first, then the fit: "
+                        "laplace_approximation(data, result), sample_posterior(data, result)")
+    checked(data, "the posterior")
     if isinstance(fit, FitResult):
         bounds, model = fit.bounds, fit.model
         validate_incidences_deg = fit.validation_incidences
