@@ -269,6 +269,13 @@ def test_laplace_flags_a_parameter_at_its_bound(white_paint):
     assert approximation.warnings == [str(w.message) for w in caught]
     assert approximation.warnings[0].startswith("the posterior's mode puts kd at a bound")
     assert "mcmc" in approximation.warnings[0]
+    # The table marks that row: its linearised std and its intervals contradicted each
+    # other (NiTE on invar A, ggx: kd's std 6e-4 beside a 68 % interval of [1e-8, 100]).
+    assert approximation.diagnostics["at_bounds"] == ["kd"]
+    rows = {line.split()[0]: line for line in approximation.table().splitlines()
+            if line.split() and line.split()[0] in approximation.model.names}
+    assert [name for name, line in rows.items() if line.endswith("(cut)")] == ["kd"]
+    assert "(cut) kd: the mode lies on a bound of the box" in approximation.table()
     # The misfit is large enough that the data's sigma no longer describe the scatter.
     assert "chi-square per degree of freedom" in approximation.warnings[1]
 

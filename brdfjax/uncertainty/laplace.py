@@ -120,7 +120,9 @@ def laplace_approximation(data: Measurements, fit, *, draws: int = 2000, seed: i
             for name, levels in INTERVALS.items()}
     inside = np.all((ends["ci95"] >= np.asarray(post.lower)[:, None])
                     & (ends["ci95"] <= np.asarray(post.upper)[:, None]), axis=1)
-    messages = _flags(center[:size], post.model.names, condition, condition_limit,
+    at_bounds = [name for name, edge in zip(post.model.names, _at_edge(center[:size], 0, 1))
+                 if edge]
+    messages = _flags(at_bounds, condition, condition_limit,
                       {post.model.names[k] for k in np.flatnonzero(~inside[:size])})
     trustworthy = not messages
     idle = post.model.idle_parts(physical(center[None, :size], post)[0], post.bounds)
@@ -164,7 +166,8 @@ def laplace_approximation(data: Measurements, fit, *, draws: int = 2000, seed: i
         median=median, std=np.sqrt(np.diag(physical_covariance)), ci68=ci[0].T, ci95=ci[1].T,
         covariance=physical_covariance, correlation=correlation(covariance[:size, :size]),
         samples=samples, noise=noise, center=center, center_covariance=covariance,
-        diagnostics={"condition_number": condition, "points": int(post.target.shape[0])},
+        diagnostics={"condition_number": condition, "points": int(post.target.shape[0]),
+                     "at_bounds": at_bounds},
         timings={"total": time.perf_counter() - tic}, bounds=post.bounds, model=post.model,
         **fitted_of(fit))
 
@@ -298,11 +301,11 @@ def _at_edge(x, lower, upper) -> np.ndarray:
     return (x < lower + margin) | (x > upper - margin)
 
 
-def _flags(unit, names, condition: float, condition_limit: float, cut: set) -> list:
-    """Why the Gaussian approximation should not be trusted (an empty list if it can be)."""
+def _flags(at_bounds: list, condition: float, condition_limit: float, cut: set) -> list:
+    """Why the Gaussian approximation should not be trusted (an empty list if it can be);
+    ``at_bounds``: the parameters whose mode lies on a bound of the box."""
     advice = "; use --uncertainty mcmc (brdfjax.sample_posterior) for honest intervals"
     messages = []
-    at_bounds = [name for name, edge in zip(names, _at_edge(unit, 0, 1)) if edge]
     if at_bounds:
         messages.append(f"the posterior's mode puts {', '.join(at_bounds)} at a bound of the "
                         "search box (whatever the fit's value): the posterior is cut there "

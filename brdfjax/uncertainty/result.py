@@ -208,7 +208,7 @@ class UncertaintyResult:
         lines += [_wrap(note) for note in notes]
         lines.append(f"  {'':>{width}}{fit_header} {'median':>12} {'std':>11}   "
                      f"{'68 % interval':<27} 95 % interval")
-        outside = []
+        outside, cut = [], self.diagnostics.get("at_bounds", ())
         for k, name in enumerate(names):
             fit_cell = ""
             if fitted is not None:
@@ -218,7 +218,12 @@ class UncertaintyResult:
                     outside.append(name)
             lines.append(f"  {name:>{width}}{fit_cell} {self.median[k]:12.6g} "
                          f"{self.std[k]:11.4g}   {_interval(self.ci68[k]):<27} "
-                         f"{_interval(self.ci95[k])}")
+                         f"{_interval(self.ci95[k])}" + ("  (cut)" if name in cut else ""))
+        if cut:
+            lines.append(_wrap(f"(cut) {', '.join(cut)}: the mode lies on a bound of the box, "
+                               "where the Gaussian is cut; its std (linearised at the bound) "
+                               "and its intervals (of the Gaussian in the search's scale) "
+                               "describe no posterior: see the warning"))
         if outside:
             verb = "lies outside its" if len(outside) == 1 else "lie outside their"
             lines.append(_wrap(f"* the fit's {', '.join(outside)} {verb} 95 % interval: "
