@@ -140,14 +140,15 @@ def evolve(key, prob: Problem, bounds: Bounds, config: EvolveConfig | None = Non
     """
     check_population(population_size, islands, elite_count)
     config = EvolveConfig() if config is None else config
-    if key is None or (jnp.ndim(key) == 0 and not any(
-            jnp.issubdtype(jnp.result_type(key), kind)
-            for kind in (jnp.integer, jax.dtypes.prng_key))):
-        raise TypeError("the seed must be an integer or a JAX PRNG key, got "
-                        + ("None" if key is None else f"a {jnp.result_type(key)}"))
-    if jnp.ndim(key) == 0 and jnp.issubdtype(jnp.result_type(key), jnp.integer):
+    if key is None:
+        raise TypeError("the seed must be an integer or a JAX PRNG key, got None")
+    kind, scalar = jnp.result_type(key), jnp.ndim(key) == 0
+    typed = jax.dtypes.issubdtype(kind, jax.dtypes.prng_key)
+    if scalar and jnp.issubdtype(kind, jnp.integer):
         key = jax.random.key(key)
-    elif not jax.dtypes.issubdtype(jnp.result_type(key), jax.dtypes.prng_key):
+    elif scalar and not typed:
+        raise TypeError(f"the seed must be an integer or a JAX PRNG key, got a {kind}")
+    elif not typed:
         key = jax.random.wrap_key_data(key)  # a legacy uint32 key of jax.random.PRNGKey
     out, dtype = prob.target.dtype, jnp.dtype(precision)
     prob, bounds = in_precision((prob, bounds), dtype)

@@ -447,14 +447,14 @@ def predict(result, geometry: Measurements, calibration: Calibration | None = No
                         f"{type(result).__name__}")
     checked(geometry, "predict", geometry_only=True)
     check_discrepancy(discrepancy)
-    if calibration is None and (discrepancy, seed) not in result.calibrations:
-        from brdfjax.prediction.cross_validation import cross_validate
-
-        validation = cross_validate(result.training, result.model, seed=seed,
-                                    bounds=result.bounds)
-        result.calibrations[discrepancy, seed] = calibrate(
-            result.training, validation, discrepancy=discrepancy, fitted=result.vector)
     if calibration is None:
+        if (discrepancy, seed) not in result.calibrations:
+            from brdfjax.prediction.cross_validation import cross_validate
+
+            validation = cross_validate(result.training, result.model, seed=seed,
+                                        bounds=result.bounds)
+            result.calibrations[discrepancy, seed] = calibrate(
+                result.training, validation, discrepancy=discrepancy, fitted=result.vector)
         calibration = result.calibrations[discrepancy, seed]
     values = np.asarray(brdf_values(result.vector, prepare(geometry, result.model),
                                     result.model))

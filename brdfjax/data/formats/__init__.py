@@ -66,9 +66,8 @@ def load_geometry(path, **options) -> Measurements:
         The `Measurements` (angles in radians, as always).
     """
     reader = _reader(path, options)
-    if reader.__name__ == "brdfjax.data.formats.csv":
-        return _read_from(path, reader.read(path, geometry_only=True, **options))
-    return _read_from(path, reader.read(path, **options))
+    only = {"geometry_only": True} if reader.__name__ == "brdfjax.data.formats.csv" else {}
+    return _read_from(path, reader.read(path, **only, **options))
 
 
 def load_spectral(path, wavelengths=None) -> dict[float, Measurements]:
@@ -161,7 +160,7 @@ def _reader(path, options=()):
     for name in options:
         if name not in taken:
             kind = reader.__name__.rsplit(".", 1)[-1]
-            raise DataError(f"{OPTION_FLAGS.get(name, name)} does not apply to this file "
+            raise DataError(f"{OPTION_FLAGS[name]} does not apply to this file "
                             f"({kind} format)", path,
                             hint="--blank is for RT-300S .xls scans, --wavelength for NIST, "
                                  "ASTM, Zemax and CSV files of several wavelengths")

@@ -132,6 +132,9 @@ def write_model_astm(path, params, incidences_deg, theta_r_deg=tuple(range(0, 90
             (`brdfjax.prediction.discrepancy.Discrepancy`), or None.
     """
     from brdfjax.data.formats.zemax import evaluate_model, model_comment, parameter_comment
+    from brdfjax.models import model_for
+
+    model = model_for(params, model)  # once, for the table and its header
 
     grid = np.meshgrid(*(np.asarray(x, dtype=float).reshape(-1)
                          for x in (incidences_deg, theta_r_deg, phi_r_deg)), indexing="ij")
@@ -140,7 +143,7 @@ def write_model_astm(path, params, incidences_deg, theta_r_deg=tuple(range(0, 90
     keep = (theta_r > 0) | (phi_r == phi_r.min())
     theta_i, theta_r, phi_r = theta_i[keep], theta_r[keep], phi_r[keep] * (theta_r[keep] > 0)
     values = evaluate_model(params, theta_i, theta_r, phi_r, model, correction)
-    header = {SAMPLE_KEY: sample, "SOURCE": model_comment(params, model, correction),
+    header = {SAMPLE_KEY: sample, "SOURCE": model_comment(model, correction),
               "COMMENT": parameter_comment(params, model)}
     _write_table(path, header, *np.radians([theta_i, theta_r, phi_r]), values,
                  _output_name(wavelength_nm))

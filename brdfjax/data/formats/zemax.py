@@ -452,11 +452,14 @@ def write_model(path, params, incidences_deg, azimuths_deg=tuple(range(0, 181, 1
     Returns:
         The TIS of each incidence's table (as written in the file).
     """
+    from brdfjax.models import model_for
+
+    model = model_for(params, model)  # once, for the table and its header
     if radial_deg is None:
         radial_deg = hemisphere_radials(incidences_deg)
     incidences, azimuths, radials, table = model_table(
         params, incidences_deg, azimuths_deg, radial_deg, model, correction)
-    comments = [f"Sample: {sample}", model_comment(params, model, correction),
+    comments = [f"Sample: {sample}", model_comment(model, correction),
                 parameter_comment(params, model)]
     if wavelength_nm is not None:
         comments.append(f"wavelength_nm: {wavelength_nm:g}")
@@ -497,11 +500,11 @@ def evaluate_model(params, theta_i_deg, theta_r_deg, phi_r_deg, model=None,
     return values.reshape(shape)
 
 
-def model_comment(params, model=None, correction=None) -> str:
-    """Which model an export of ``params`` tabulates, for its header."""
-    from brdfjax.models import model_for
+def model_comment(model=None, correction=None) -> str:
+    """Which model an export tabulates, for its header."""
+    from brdfjax.models import get
 
-    model = model_for(params, model)
+    model = get(model)
     text = f"BRDF model {model.name} ({model.summary.split(':')[0]}), exported by brdfjax"
     if correction is not None:
         text += (", times its learned discrepancy (a Gaussian process of the log residual): "
@@ -511,12 +514,11 @@ def model_comment(params, model=None, correction=None) -> str:
 
 def parameter_comment(params, model=None) -> str:
     """``"parameters: kb=..., kr=..., ..."`` (the model's names) for an export's header."""
-    from brdfjax.models import model_for
+    from brdfjax.models import get
     from brdfjax.models.paper import as_vector
 
-    names = model_for(params, model).names
     vector = np.asarray(as_vector(params), dtype=float)
-    return "parameters: " + ", ".join(f"{n}={v:.8g}" for n, v in zip(names, vector))
+    return "parameters: " + ", ".join(f"{n}={v:.8g}" for n, v in zip(get(model).names, vector))
 
 
 def tis(table, incidence_deg, azimuths_deg, radial_deg) -> float:
