@@ -264,7 +264,11 @@ def bench_discrepancy(models, runs):
               "run at least 75 %, 68 % coverage 60-76 %, median 95 % half-width at most 25 %; "
               "held-out median relative error at most 5 % on the NiTE runs and 10 % on every "
               "run. Runs marked *decide* were looked at while the method was built; the "
-              "others confirm it."), "",
+              "others confirm it, with one exception, found by a review on 2026-12-06: the "
+              "process's incidence input and the lower bound of its length scale were chosen "
+              "on 2026-12-03 from results pooled over all 14 runs (the first *Tried on "
+              "2026-12-03* note below names them, and a confirm run, 01singularity), so the "
+              "confirm runs were seen for those two choices."), "",
              "Run-to-run repeatability, the physical anchor (95th percentile of |y - mean of "
              "the other two runs| / (|mean| + 5 % of the median |BRDF|) at the geometries all "
              "three runs share): " + ", ".join(f"{m} {100 * v[0]:.0f} %"

@@ -27,8 +27,10 @@ prediction where nothing was measured:
   incidences), so that it never becomes an independent offset per measured incidence:
   with the bound at 0.01 rad the process of all of NiTE on steel A's training points
   learned 0.05 rad and its calibration fold's 1.2 rad, and that decide run's median
-  half-width grew from 43 % to 67 %. Chosen on the runs bench_predictive.DECIDE (0.01, 0.2
-  and 0.4 rad tried) and confirmed on the others (BENCHMARKS.md, predictive-discrepancy).
+  half-width grew from 43 % to 67 %. The incidence input and this bound (0.01, 0.2 and
+  0.4 rad tried) were chosen on 2026-12-03 from results that BENCHMARKS.md
+  (predictive-discrepancy) records pooled over all 14 runs, the confirm runs of
+  bench_predictive.DECIDE's split included: for these two choices that split is not clean.
   The incidence input is a choice: the correction learns measured data, whose errors (the
   model's and the instrument's) follow the incidence of each scan, and it is not
   reciprocal in ``theta_i <-> theta_r`` (the angle inputs are);
