@@ -68,6 +68,7 @@ def main(argv=None) -> int:
     command runs in the calling thread and an interrupt returns 130.
     """
     args = build_parser().parse_args(argv)
+    args.argv = list(sys.argv[1:] if argv is None else argv)  # for commands that suggest one
     if argv is not None or threading.current_thread() is not threading.main_thread():
         return _run(args)
     outcome = {}

@@ -159,7 +159,7 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
     return fig
 
 
-def plot_prediction_bands(held, predictions: dict, path, title: str = "") -> None:
+def plot_prediction_bands(held, predictions: dict, path, title: str = ""):
     """Held-out measurements against predictions and their 68 / 95 % bands, one panel per
     prediction (``{label: brdfjax.prediction.intervals.Prediction}``, in-plane geometry), on one
     log scale of ``f_r cos(theta_r)`` so that the wings read as well as the peak."""
@@ -170,12 +170,17 @@ def plot_prediction_bands(held, predictions: dict, path, title: str = "") -> Non
     x = signed_angle_deg(held)
     order = np.argsort(x)
     cos_r = np.cos(held.theta_r)
-    for ax, (label, prediction) in zip(axes[0], panels):
-        def curve(values):
-            return (np.asarray(values) * cos_r)[order]
 
-        positive = curve(prediction.brdf)[curve(prediction.brdf) > 0]
-        bottom = 0.3 * positive.min() if positive.size else 1e-6
+    def curve(values):
+        return (np.asarray(values) * cos_r)[order]
+
+    # One floor for the shared axis, below every drawn value: a band whose lower edge is
+    # negative (relative scores) runs down to it, the axis' edge.
+    drawn = np.concatenate([curve(held.brdf), *(curve(getattr(p, k)) for _, p in panels
+                                                 for k in ("brdf", "lo68", "lo95"))])
+    drawn = drawn[np.isfinite(drawn) & (drawn > 0)]
+    bottom = 0.5 * drawn.min() if drawn.size else 1e-6
+    for ax, (label, prediction) in zip(axes[0], panels):
         ax.fill_between(x[order], np.maximum(curve(prediction.lo95), bottom),
                         curve(prediction.hi95), color="C0", alpha=0.2, lw=0, label="95 %")
         ax.fill_between(x[order], np.maximum(curve(prediction.lo68), bottom),
@@ -183,6 +188,7 @@ def plot_prediction_bands(held, predictions: dict, path, title: str = "") -> Non
         ax.plot(x[order], curve(prediction.brdf), "-", color="C0", lw=1.5, label="prediction")
         ax.plot(x, held.brdf * cos_r, "o", ms=3.5, mfc="none", mec="k", label="held-out data")
         ax.set_yscale("log")
+        ax.set_ylim(bottom=bottom)
         ax.set_title(f"{label}\n95 % half-width {100 * np.median(prediction.half_width()):.0f}"
                      f" % (median), coverage {100 * prediction.coverage('95'):.0f} %",
                      fontsize=9)
@@ -194,6 +200,7 @@ def plot_prediction_bands(held, predictions: dict, path, title: str = "") -> Non
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+    return fig
 
 
 def plot_hemisphere(params, incidences_deg, path, title: str = "", resolution: int = 121,

@@ -336,6 +336,24 @@ def test_an_export_grid_is_checked_in_degrees_before_the_fit(options, said, tmp_
     assert list(tmp_path.iterdir()) == []
 
 
+def test_too_few_walkers_are_refused_before_the_fit(tmp_path, capsys, monkeypatch):
+    """emcee's walker count is known before the fit (the white paint gives sigma: 5
+    coordinates): refused then, and no file written."""
+    import brdfjax.fitting.fit
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("the fit started before the walkers were checked")
+
+    monkeypatch.setattr(brdfjax.fitting.fit, "fit", no_work)
+    data = str(DATA / "synthetic" / "white_paint.csv")
+    out = tmp_path / "p.csv"
+    assert main(["fit", data, "--uncertainty", "mcmc", "--walkers", "3", "--predict", data,
+                 "--predict-out", str(out), "--json", str(tmp_path / "r.json")]) == 1
+    assert "emcee needs at least 10 walkers for 5 sampled coordinates, got 3" in (
+        capsys.readouterr().err)
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.parametrize("argv, said", [
     (["eval", "--theta-i", "30", "--theta-r", "20:40:0", "--phi-r", "0"],
      "'20:40:0': a range START:STOP:STEP runs upwards with a positive step, e.g. 20:40:1"),

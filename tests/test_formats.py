@@ -59,6 +59,8 @@ BAD = {
     "negative brdf": (HEADER + GOOD_ROWS + "10,60,180,-0.05\n", ":8: brdf = -0.05 is negative"),
     "angle above 90": (HEADER + GOOD_ROWS + "10,95,180,0.1\n", ":8: theta_r = 95 deg is outside"),
     "signed angle": (HEADER + GOOD_ROWS + "10,-30,0,0.1\n", ":8: theta_r = -30 deg"),
+    "azimuth past a turn": (HEADER + GOOD_ROWS + "10,30,400,0.1\n",
+                            ":8: phi_r = 400 deg is beyond one turn"),
     "radians": (HEADER + "".join(f"0.5,{t},3.14159,0.1\n" for t in (0.1, 0.4, 0.8, 1.2)),
                 "look like radians"),
     "brdf 1e308": (HEADER + GOOD_ROWS + "10,60,180,1e308\n", ":8: brdf = 1e+308 is an outlier"),

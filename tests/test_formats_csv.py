@@ -70,6 +70,9 @@ def test_geometry_only_angles_are_still_checked(tmp_path):
     path.write_text("theta_i;theta_r;phi_r\n10;0;0\n10;95;180\n")
     with pytest.raises(DataError, match=r"geometry.csv:3: theta_r = 95 deg is outside"):
         load_geometry(path)
+    path.write_text("theta_i;theta_r;phi_r\n10;0;0\n30;10;-400\n")
+    with pytest.raises(DataError, match=r"geometry.csv:3: phi_r = -400 deg is beyond one turn"):
+        load_geometry(path)
 
 
 def test_load_geometry_of_a_file_with_values_keeps_them(white_paint):

@@ -125,3 +125,36 @@ def test_fit_curves_pass_through_the_peaks_and_bands_are_named_not_faint(tmp_pat
     drawn = [line.get_ydata() for line in ax.get_lines() if len(line.get_ydata()) == 361]
     assert any(np.array_equal(y, 1.05 * curve) for y in drawn)  # the prediction, dotted
     assert any(np.allclose(y, curve, rtol=1e-12) for y in drawn)  # the model, dash-dotted
+
+
+def test_prediction_bands_are_drawn_down_to_their_lower_edge(tmp_path):
+    """Each panel's 95 % band is drawn down to its own lower edge, below the faintest
+    held-out point it holds (it was cut at 0.3 x the lowest prediction, and held-out points
+    inside the band were drawn outside it), and a negative edge runs to the axis' bottom."""
+    from matplotlib.collections import PolyCollection
+
+    from brdfjax.data.measurements import Measurements
+    from brdfjax.plot import plot_prediction_bands
+    from brdfjax.prediction.intervals import Prediction
+
+    theta_r = np.arange(5.0, 86.0, 5.0)
+    held = Measurements.from_degrees(np.full(theta_r.size, 30.0), theta_r,
+                                     np.full(theta_r.size, 180.0), 10.0 ** -(theta_r / 20))
+    centre = 4 * held.brdf  # predictions four times too high: the band's edge is far below
+
+    def prediction(low95):
+        return Prediction(*np.degrees([held.theta_i, held.theta_r, held.phi_r]), centre,
+                          centre, 0.5 * centre, 2 * centre, low95, 8 * centre, held.brdf,
+                          "ggx")
+
+    figure = plot_prediction_bands(held, {"positive": prediction(0.2 * centre),
+                                          "negative": prediction(centre - 10)},
+                                   tmp_path / "bands.png")
+    cos_r = np.cos(held.theta_r)
+    for ax in figure.axes:
+        bottom = ax.get_ylim()[0]
+        assert bottom < np.min(0.2 * centre * cos_r) and bottom < np.min(held.brdf * cos_r)
+        band = next(c for c in ax.collections if isinstance(c, PolyCollection))
+        lowest = band.get_paths()[0].vertices[:, 1].min()
+        assert lowest == pytest.approx(bottom if ax.get_title().startswith("negative")
+                                       else np.min(0.2 * centre * cos_r), rel=1e-9)

@@ -195,6 +195,10 @@ def test_fit_predict_writes_the_corrected_prediction_beside_the_model(tmp_path, 
         assert f"({'the model times its learned correction' if kind == 'gp' else 'the model alone'}"\
                in printed
         assert f"{kind}.bsdf: " in printed and "TIS at 0 deg" in printed
+        # the table covers the hemisphere, the training data the plane: said, as by --predict
+        assert f"warning: {tmp_path / f'{kind}.bsdf'}: " in printed
+        assert "lie out of the plane of incidence" in printed
+        assert f"wrote {out}, " in printed  # with the other files, after all the work
         fitted = int(np.sum(np.abs(np.degrees(ggx_data.theta_i) - 40.0) > 1e-6))
         assert (f"({fitted} of the {len(ggx_data)} points were fitted: in-sample, not a "
                 "validation") in printed
@@ -217,7 +221,30 @@ def test_the_default_model_points_to_one_that_predicts_much_better(tmp_path, ggx
                  "--predict-out", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "note: ggx predicts the held-out incidences" in printed, printed
-    assert f"brdfjax fit {source} --model ggx --predict {source} --predict-out {out}" in printed
+    renamed = tmp_path / "five-ggx.csv"  # this run's file is kept
+    assert (f"brdfjax fit {source} --uncertainty none --predict {source} --predict-out "
+            f"{renamed} --model ggx") in printed
+
+
+def test_a_suggested_command_is_the_users_with_the_model_swapped():
+    """`rerun_command` keeps every option given, renames the files written, quotes for a
+    shell, and puts --model last, where it wins over an abbreviated one."""
+    import shlex
+    from types import SimpleNamespace
+
+    from brdfjax.cli import build_parser
+    from brdfjax.commands.fitting import rerun_command
+
+    argv = ["fit", "my data.csv", "--model=five", "--validate-incidence", "30", "--predict",
+            "g.csv", "--predict-out", "out/p.csv", "--json=r.json", "--discrepancy", "none",
+            "--mod", "five"]
+    command = rerun_command(SimpleNamespace(argv=argv), "ggx")
+    assert command == ("brdfjax fit 'my data.csv' --validate-incidence 30 --predict g.csv "
+                       "--predict-out out/p-ggx.csv --json=r-ggx.json --discrepancy none "
+                       "--mod five --model ggx")
+    args = build_parser().parse_args(shlex.split(command)[1:])
+    assert (args.model, args.file, args.predict_out, args.discrepancy) == (
+        "ggx", "my data.csv", "out/p-ggx.csv", "none")
 
 
 def test_scattered_incidences_are_binned():

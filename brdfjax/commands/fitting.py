@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
+import shlex
 import warnings
 from pathlib import Path
 
@@ -221,6 +222,13 @@ def run_fit(args) -> None:
     if args.per_incidence:
         run_per_incidence(data, args)
         return
+    if args.uncertainty == "mcmc":  # before the fit, not after it
+        from brdfjax.models import get
+        from brdfjax.uncertainty.likelihood import NOISE_NAMES
+        from brdfjax.uncertainty.mcmc import check_walkers
+
+        check_walkers(args.walkers, get(args.model).size
+                      + (0 if data.sigma is not None else len(NOISE_NAMES)))
     if args.abg_out:
         raise ValueError("--abg-out needs --model abg --per-incidence")
     result = fit(data, args.method, model=args.model, seed=args.seed, loss=args.loss,
@@ -346,7 +354,6 @@ def validate_and_predict(result, data, args, geometry=None):
         The conformal `brdfjax.prediction.intervals.Calibration` (for the plot's predictive bands
         and the JSON) and the `brdfjax.prediction.intervals.Prediction` (None without --predict).
     """
-    from brdfjax.data.formats import write_atomically
     from brdfjax.prediction.intervals import predict
 
     calibration, validation = calibrated(result, args)
@@ -360,10 +367,9 @@ def validate_and_predict(result, data, args, geometry=None):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # printed below, with the rest
             prediction = predict(result, geometry, calibration)
-        write_atomically(args.predict_out, prediction.to_csv())
         what = ("the model times its learned correction, --discrepancy gp"
                 if prediction.discrepancy == "gp" else "the model alone, --discrepancy none")
-        line = (f"predictions at {len(geometry)} points written to {args.predict_out} "
+        line = (f"predictions at {len(geometry)} points for {args.predict_out} "
                 f"({what}); median 95 % half-width "
                 f"{100 * np.median(prediction.half_width()):.3g} % of the prediction")
         if prediction.measured is not None:
@@ -413,8 +419,39 @@ def suggest_model(result, args, validation, calibration) -> None:
     if np.isfinite(ours) and theirs * BETTER_MODEL_FACTOR < ours:
         print(f"  note: {BETTER_MODEL} predicts the held-out incidences {ours / theirs:.3g}x "
               f"better than the paper's model (cv_error {100 * theirs:.3g} % against "
-              f"{100 * ours:.3g} %): brdfjax fit {args.file} --model {BETTER_MODEL} "
-              f"--predict {args.predict} --predict-out {args.predict_out}")
+              f"{100 * ours:.3g} %): {rerun_command(args, BETTER_MODEL)}")
+
+
+# The options that name a file the command writes (`rerun_command` renames them).
+OUTPUT_OPTIONS = ("--predict-out", "--json", "--plot", "--plot-3d", "--plot-corner",
+                  "--export", "--chain", "--abg-out")
+
+
+def rerun_command(args, model: str) -> str:
+    """The command line the user gave (``args.argv``, kept by `brdfjax.cli.main`) with
+    ``--model model`` instead of theirs, and each file it writes renamed ``NAME-MODEL.EXT``
+    so that the rerun keeps this run's files; quoted for a POSIX shell. ``--model`` goes
+    last, where it overrides an abbreviated one."""
+    tokens, kept = list(args.argv), []
+    while tokens:
+        token = tokens.pop(0)
+        name, equals, value = token.partition("=")
+        if name == "--model":
+            if not equals and tokens:
+                tokens.pop(0)
+        elif name in OUTPUT_OPTIONS and equals:
+            kept.append(f"{name}={renamed(value, model)}")
+        elif name in OUTPUT_OPTIONS and tokens:
+            kept += [token, renamed(tokens.pop(0), model)]
+        else:
+            kept.append(token)
+    return "brdfjax " + shlex.join([*kept, "--model", model])
+
+
+def renamed(path: str, model: str) -> str:
+    """``path`` with ``-model`` before its suffix: ``out.csv`` -> ``out-ggx.csv``."""
+    name = Path(path)
+    return str(name.with_name(f"{name.stem}-{model}{name.suffix}"))
 
 
 def predictive_bands(result, incidences_deg, calibration) -> dict:
@@ -464,7 +501,8 @@ def estimate_uncertainty(result, data, args):
 
 def write_outputs(result, data, args, uncertainty=None, calibration=None,
                   prediction=None) -> None:
-    """The files asked for, each written whole or not at all, after all computing is done.
+    """The files asked for (--predict-out's CSV of the ``prediction`` among them), each
+    written whole or not at all, after all computing is done.
 
     With an ``uncertainty`` result, --json gains an "uncertainty" entry (parameter
     intervals and the reflectance's at `REFLECTANCE_INCIDENCES`), --plot draws its 68 % and
@@ -498,6 +536,8 @@ def write_outputs(result, data, args, uncertainty=None, calibration=None,
         elif args.plot and data.in_plane:
             print(f"plot: no curve band drawn, the {uncertainty.method} result is "
                   f"{uncertainty.status.replace('_', ' ')} (see its warnings above)")
+    if prediction is not None:
+        write_atomically(args.predict_out, prediction.to_csv())
     if args.json:
         write_atomically(args.json, json_text(record))
     if args.plot and not data.in_plane:
@@ -543,8 +583,9 @@ def write_outputs(result, data, args, uncertainty=None, calibration=None,
         replace_atomically(args.plot_corner, lambda path: plot_corner(
             uncertainty, path, title=f"{data.name}: {uncertainty.method} posterior"))
     for path in args.export:
-        export(path, result, data, args, calibration.discrepancy if calibration else None)
-    written = [path for path in (args.json, args.plot, args.plot_3d, args.plot_corner,
+        export(path, result, data, args, calibration)
+    written = [path for path in (args.predict_out if prediction is not None else None,
+                                 args.json, args.plot, args.plot_3d, args.plot_corner,
                                  *args.export) if path]
     if written:
         print(f"wrote {', '.join(written)}")
@@ -567,14 +608,26 @@ def check_export_grid(step: float, incidences) -> None:
                          "in [0, 90) deg")
 
 
-def export(path, result, data, args, correction) -> None:
+def export(path, result, data, args, calibration) -> None:
     """Write ``--export``'s table (`brdfjax.data.formats.zemax.write_model` or
-    `brdfjax.data.formats.astm.write_model_astm`) on the ``--export-*`` grid, and say its TIS."""
+    `brdfjax.data.formats.astm.write_model_astm`) of the prediction (corrected by
+    ``calibration``'s discrepancy, if any) on the ``--export-*`` grid, say its TIS, and
+    warn of the nodes the calibration does not cover, as ``--predict`` does
+    (`brdfjax.prediction.intervals.range_notes`, on Zemax's grid above the horizon)."""
     from brdfjax.data.formats.astm import write_model_astm
-    from brdfjax.data.formats.zemax import hemisphere_radials, model_table, tis, write_model
+    from brdfjax.data.formats.zemax import (
+        HORIZON_DEG,
+        grid_angles,
+        hemisphere_radials,
+        model_table,
+        tis,
+        write_model,
+    )
+    from brdfjax.prediction.intervals import range_notes
 
     step = args.export_step
     incidences = np.sort(np.asarray(args.export_incidences, float))
+    correction = calibration.discrepancy
     options = {"sample": data.name, "model": result.model, "correction": correction,
                "wavelength_nm": data.metadata.get("wavelength_nm")}
     azimuths = np.arange(0, 180 + step / 2, step)
@@ -591,6 +644,11 @@ def export(path, result, data, args, correction) -> None:
     what = "model x learned discrepancy" if correction is not None else "model"
     print(f"{path}: {what} on a {step:g} deg grid; TIS at "
           + ", ".join(f"{aoi:g} deg {t:.4g}" for aoi, t in zip(incidences, totals)))
+    aoi, theta_r, phi_r = grid_angles(incidences, azimuths, radials)
+    above = theta_r < HORIZON_DEG - 1e-9
+    for note in range_notes(calibration, result.training.in_plane,
+                            *np.radians([aoi[above], theta_r[above], phi_r[above]])):
+        print(f"  warning: {path}: {note}")
 
 
 def incidence_lines(errors: dict, result) -> list[str]:

@@ -340,6 +340,11 @@ def _problems(arrays: dict, geometry_only: bool = False) -> dict[int, tuple]:
                                  ("zenith angles are measured from the surface normal; a "
                                   "signed in-plane angle must be converted to a zenith angle "
                                   "and an azimuth (0 or 180)"))
+        azimuth = np.degrees(arrays["phi_r"])
+        for row, i in new(np.abs(azimuth) > 360 + 1e-9):
+            problems[row] = (i, f"phi_r = {azimuth[row, i]:g} deg is beyond one turn",
+                             ("azimuths lie in [-360, 360] deg: 0 is the source side, 180 "
+                              "the specular side"))
         if geometry_only:
             return problems
         brdf = arrays["brdf"]

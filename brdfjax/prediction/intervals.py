@@ -470,29 +470,39 @@ def predict(result, geometry: Measurements, calibration: Calibration | None = No
         q = np.where(outside, calibration.factor(level, True), calibration.factor(level, False))
         bounds[f"lo{name}"], bounds[f"hi{name}"] = _interval(calibration, q, values, centre,
                                                               mu, sigma)
-    notes = []
-    low, high = calibration.reach
-    beyond = (incidence < low - 1e-6) | (incidence > high + 1e-6)
-    if beyond.any():
-        notes.append(f"{int(beyond.sum())} of {beyond.size} points have incidences beyond "
-                     f"{low:g}-{high:g} deg, the range the end folds calibrate (the measured "
-                     f"{calibration.low:g}-{calibration.high:g} deg widened by the spacing of "
-                     "the outermost incidences): their intervals assume the model errs there "
-                     "as it does one incidence step out; measure nearer incidences to trust "
-                     "them")
-    outside_plane = (np.abs(np.sin(geometry.phi_r)) > 1e-9) & (geometry.theta_r > 1e-9)
-    if result.training.in_plane and outside_plane.any():
-        notes.append(f"{int(outside_plane.sum())} of {outside_plane.size} points lie out of the "
-                     "plane of incidence, where the training data have none: the model's "
-                     "shape there is untested, the learned correction is applied as at the "
-                     "same half and difference angles in the plane, and the intervals are "
-                     "calibrated in the plane only; measure out of the plane to trust them")
+    notes = range_notes(calibration, result.training.in_plane, geometry.theta_i,
+                        geometry.theta_r, geometry.phi_r)
     for note in notes:
         warnings.warn(note, PredictionWarning, stacklevel=2)
     measured = geometry.brdf if not np.all(np.isnan(geometry.brdf)) else None
     return Prediction(incidence, np.degrees(geometry.theta_r), np.degrees(geometry.phi_r),
                       centre, values, measured=measured, model=result.model.name,
                       discrepancy=calibration.kind, warnings=notes, **bounds)
+
+
+def range_notes(calibration: Calibration, in_plane: bool, theta_i, theta_r, phi_r) -> list:
+    """What predictions at these angles (radians) should say (`Prediction.warnings`): the
+    points whose incidence lies beyond `Calibration.reach`, and, for training data in the
+    plane of incidence (``in_plane``), the points out of it."""
+    notes = []
+    incidence = np.degrees(theta_i)
+    low, high = calibration.reach
+    beyond = (incidence < low - 1e-6) | (incidence > high + 1e-6)
+    if beyond.any():
+        notes.append(f"{int(beyond.sum())} of {beyond.size} points have incidences beyond "
+                     f"{low:g}-{high:g} deg, the range the end folds calibrate (the measured "
+                     f"{calibration.low:g}-{calibration.high:g} deg widened by the spacing of "
+                     "the outermost incidences): their predictions and intervals assume the "
+                     "model errs there as it does one incidence step out; measure nearer "
+                     "incidences to trust them")
+    outside_plane = (np.abs(np.sin(phi_r)) > 1e-9) & (theta_r > 1e-9)
+    if in_plane and outside_plane.any():
+        notes.append(f"{int(outside_plane.sum())} of {outside_plane.size} points lie out of the "
+                     "plane of incidence, where the training data have none: the model's "
+                     "shape there is untested, the learned correction is applied as at the "
+                     "same half and difference angles in the plane, and the intervals are "
+                     "calibrated in the plane only; measure out of the plane to trust them")
+    return notes
 
 
 class PredictionWarning(UserWarning):

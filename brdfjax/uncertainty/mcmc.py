@@ -162,6 +162,15 @@ def require_emcee():
     return require("emcee", "mcmc", "MCMC sampling (--uncertainty mcmc)")
 
 
+def check_walkers(walkers: int, coordinates: int) -> None:
+    """Refuse fewer walkers than emcee's stretch move needs: twice the sampled
+    ``coordinates`` (the model's parameters, plus the two noise scales of
+    `brdfjax.uncertainty.likelihood.NOISE_NAMES` where the data give no sigma)."""
+    if walkers < 2 * coordinates:
+        raise ValueError(f"emcee needs at least {2 * coordinates} walkers for {coordinates} "
+                         f"sampled coordinates, got {walkers}")
+
+
 def sample_posterior(data: Measurements, fit, *, walkers: int = 32, max_steps: int = 20000,
                      check_every: int = 250, stop_when_converged: bool = True, seed: int = 0,
                      chain_path=None, progress: bool = True,
@@ -199,9 +208,7 @@ def sample_posterior(data: Measurements, fit, *, walkers: int = 32, max_steps: i
 
     emcee = require_emcee()
     post, vector = training_setup(data, fit, bounds, model, validate_incidences_deg)
-    if walkers < 2 * post.ndim:
-        raise ValueError(f"emcee needs at least {2 * post.ndim} walkers for {post.ndim} "
-                         f"sampled coordinates, got {walkers}")
+    check_walkers(walkers, post.ndim)
     if max_steps < 1 or check_every < 1:
         raise ValueError("max_steps and check_every must be positive")
     tic = time.perf_counter()

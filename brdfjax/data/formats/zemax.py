@@ -473,11 +473,17 @@ def model_table(params, incidences_deg, azimuths_deg, radial_deg, model=None,
     0 at and below the horizon (``correction``: as `evaluate_model` takes it)."""
     incidences, azimuths, radials = (np.sort(np.asarray(x, dtype=float).reshape(-1))
                                      for x in (incidences_deg, azimuths_deg, radial_deg))
-    aoi, azimuth, radial = np.meshgrid(incidences, azimuths, radials, indexing="ij")
-    theta_r, phi_r = zemax_to_angles(aoi, azimuth, radial)
+    aoi, theta_r, phi_r = grid_angles(incidences, azimuths, radials)
     above = theta_r < HORIZON_DEG - 1e-9
     values = evaluate_model(params, aoi, np.minimum(theta_r, 90.0), phi_r, model, correction)
     return incidences, azimuths, radials, np.where(above, values, 0.0)
+
+
+def grid_angles(incidences_deg, azimuths_deg, radial_deg):
+    """``(theta_i, theta_r, phi_r)`` (degrees, (incidence, azimuth, radial)) of every node
+    of Zemax's grid."""
+    aoi, azimuth, radial = np.meshgrid(incidences_deg, azimuths_deg, radial_deg, indexing="ij")
+    return (aoi, *zemax_to_angles(aoi, azimuth, radial))
 
 
 def evaluate_model(params, theta_i_deg, theta_r_deg, phi_r_deg, model=None,
