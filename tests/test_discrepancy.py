@@ -167,12 +167,38 @@ def test_angle_features_keep_reciprocity_out_of_the_plane():
 
 
 def test_subsample_keeps_every_incidence_its_share():
-    incidence = np.repeat([10.0, 30.0, 50.0, 70.0], 500)
-    theta_r = np.tile(np.arange(500.0), 4)
-    index = discrepancy.subsample((theta_r, np.zeros(2000), incidence), limit=256)
+    incidence = np.radians(np.repeat([10.0, 30.0, 50.0, 70.0], 500))
+    theta_r = np.radians(np.tile(np.linspace(0, 85, 250), 8))
+    phi_r = np.tile(np.repeat([0.0, np.pi], 250), 4)  # an in-plane scan on both sides
+    index = discrepancy.subsample(incidence, theta_r, phi_r, limit=256)
     assert index.size == 256 and np.unique(index).size == 256
     counts = np.unique(incidence[index], return_counts=True)[1]
     assert counts.min() >= 63 and counts.max() <= 65
+    for side in (0.0, np.pi):  # each side of each scan: its share, spread along the scan
+        kept = np.degrees(theta_r[index][phi_r[index] == side])
+        assert 124 <= kept.size <= 132 and kept.min() < 3 and kept.max() > 82
+
+
+def test_subsample_covers_a_regular_grid():
+    """On a grid of 64 azimuths by 40 zeniths at each of 4 incidences (10,240 points), each
+    incidence keeps its 64 points, and each square of a 4 x 4 division of the projected
+    disk its share of them within a point: the Z-order's property. (Ordered by azimuth,
+    then zenith, the old rule kept one band of zeniths per incidence, 20 deg wide.)"""
+    ti, pr, tr = (np.radians(a).ravel() for a in np.meshgrid(
+        [10.0, 30.0, 50.0, 70.0], (np.arange(64) + 0.5) * 360 / 64, np.arange(1.0, 80, 2),
+        indexing="ij"))
+    x, y = np.sin(tr) * np.cos(pr), np.sin(tr) * np.sin(pr)
+    squares = np.floor((x + 1) / 0.5) * 4 + np.floor((y + 1) / 0.5)
+    assert np.min(np.abs(np.concatenate([x, y])[:, None] - [-0.5, 0, 0.5])) > 1e-4  # none on an edge
+    index = discrepancy.subsample(ti, tr, pr, limit=256)
+    for incidence in np.unique(ti):
+        here = ti == incidence
+        kept = index[here[index]]
+        assert kept.size == 64
+        assert np.degrees(tr[kept]).min() < 5 and np.degrees(tr[kept]).max() > 75
+        for square in np.unique(squares[here]):
+            expected = np.sum(here & (squares == square)) * 64 / here.sum()
+            assert abs(np.sum(squares[kept] == square) - expected) <= 1.5, square
 
 
 @pytest.mark.parametrize("size", [19, 40, 99])

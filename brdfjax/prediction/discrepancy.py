@@ -38,8 +38,14 @@ prediction where nothing was measured:
   deviation of a new measurement's ``r``, noise included) scales the conformal score.
 
 Scale: a process is fitted to at most `MAX_POINTS` training points. Above that the rule is
-fixed: the points sorted by incidence, azimuth and reflection zenith, then `MAX_POINTS` of
-them evenly spaced along that order (so every incidence keeps its share). A likelihood costs
+fixed (`subsample`): the points sorted by incidence, then along a Z-order curve over the
+reflected direction projected on the surface, ``(sin theta_r cos phi_r, sin theta_r sin
+phi_r)``, and `MAX_POINTS` of them evenly spaced along that order. Every incidence keeps its
+share, and within an incidence so does every square of the curve's quadtree (to a point),
+so that the kept points cover each scan as the data do, and no regular grid aliases with
+the spacing: ordered by azimuth, then zenith, a grid of 64 azimuths by 40 zeniths kept one
+band of zeniths per incidence. In the plane of incidence the order runs along the scan. A
+likelihood costs
 O(M^3) with M <= `MAX_POINTS` whatever the data's size; a prediction costs O(M^2) per point,
 done in blocks of `BLOCK` points.
 
@@ -115,13 +121,30 @@ def log_residual(measured, predicted, floor: float) -> np.ndarray:
             - np.log(np.maximum(predicted, 0.0) + floor))
 
 
-def subsample(order_keys, limit: int = MAX_POINTS) -> np.ndarray:
-    """Indices of at most ``limit`` points, evenly spaced along the order of ``order_keys``
-    (a tuple of arrays, the last the primary key, as `numpy.lexsort` takes)."""
-    order = np.lexsort(order_keys)
-    if order.size <= limit:
-        return np.sort(order)
+def subsample(theta_i, theta_r, phi_r, limit: int = MAX_POINTS) -> np.ndarray:
+    """Indices (sorted) of at most ``limit`` of the points at these angles (radians): the
+    points ordered by incidence, then along a Z-order curve over the reflected direction
+    projected on the surface, ``limit`` of them evenly spaced along that order (see the
+    module docstring)."""
+    if np.size(theta_i) <= limit:
+        return np.arange(np.size(theta_i))
+    order = np.lexsort((_z_order(np.sin(theta_r) * np.cos(phi_r),
+                                 np.sin(theta_r) * np.sin(phi_r)), theta_i))
     return np.sort(order[np.round(np.linspace(0, order.size - 1, limit)).astype(int)])
+
+
+def _z_order(x, y) -> np.ndarray:
+    """The position along a Z-order (Morton) curve of points of the square [-1, 1]^2 (16
+    bits a coordinate, interleaved): the points of any square of the curve's quadtree are
+    consecutive in it."""
+    def spread(v):  # the 16 bits of v to the even bits of 32
+        v = np.floor((np.clip(v, -1.0, 1.0) + 1) / 2 * 65535).astype(np.uint64)
+        for shift, mask in ((8, 0x00FF00FF), (4, 0x0F0F0F0F), (2, 0x33333333),
+                            (1, 0x55555555)):
+            v = (v | (v << np.uint64(shift))) & np.uint64(mask)
+        return v
+
+    return spread(x) | (spread(y) << np.uint64(1))
 
 
 def _physical(u, dims: int):

@@ -350,7 +350,7 @@ def _training_sets(data: Measurements, values: list, masks: list, floor: float) 
     sets = []
     for value, mask in zip(values, masks):
         index = np.flatnonzero(mask)
-        keep = index[subsample((data.theta_r[index], data.phi_r[index], data.theta_i[index]),
+        keep = index[subsample(data.theta_i[index], data.theta_r[index], data.phi_r[index],
                                MAX_POINTS)]
         sets.append((x[keep], log_residual(data.brdf[keep], value[keep], floor)))
     return sets
