@@ -1,5 +1,6 @@
 """Cross-validation by incidence, predictive intervals, and model choice."""
 
+import dataclasses
 import json
 import re
 
@@ -119,6 +120,8 @@ def test_discrepancy_of_an_exact_model_is_noise(white_paint):
     (kept,) = result.calibrations.values()
     again = predict(result, data.at_incidences([30.0, 45.0]))
     assert list(result.calibrations.values()) == [kept]
+    # a copy with other training data does not reuse the calibration of these
+    assert dataclasses.replace(result, training=data.at_incidences([10.0])).calibrations == {}
     np.testing.assert_array_equal(again.hi95[:len(prediction.hi95)], prediction.hi95)
 
 
@@ -264,6 +267,7 @@ def test_models_command_ranks_by_cv_error(tmp_path, capsys):
     assert code == 0
     record = json.loads(out.read_text())
     assert record["ranking"] == ["five", "lambert"] and record["best"] == "five"
+    assert record["predictor"] == "five"  # the lowest cv_error with the discrepancy
     five = record["models"]["five"]
     assert set(five) >= {"params", "error", "cv_error", "cv_by_incidence", "aic", "bic",
                          "reflectance", "at_bounds"}
@@ -279,9 +283,10 @@ def test_models_command_ranks_by_cv_error(tmp_path, capsys):
     # needs)
     from brdfjax.cli import build_parser
 
-    suggested = re.search(r"(brdfjax fit FILE [^;)]*)", out).group(1).split()[1:]
+    suggested = re.search(r"(brdfjax fit \S+ [^;)]*)", out).group(1).split()[1:]
     args = build_parser().parse_args(suggested)
     assert args.model == "five" and bool(args.predict) == bool(args.predict_out)
+    assert args.file == str(DATA / "synthetic" / "white_paint.csv")  # the file, not FILE
     assert ("models ranked by cv_error, the mean held-out E of 4 interior folds (21, 30, 45, "
             "52 deg); the end incidences 10 and 60 deg are extrapolation") in out
 
@@ -317,6 +322,9 @@ def test_the_models_plot_keeps_its_legends_off_the_curves(tmp_path):
 
     data = load(DATA / "synthetic" / "white_paint.csv")
     comparison = compare_models(data, ["lambert", "five"], discrepancy="none")
+    # no discrepancy scored: no column of NaN, and no model to predict with named
+    assert "+ discrepancy" not in comparison.table() and "nan" not in comparison.table()
+    assert comparison.to_dict()["predictor"] is None
     figure = plot_models(data, comparison, tmp_path / "models.png")
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 

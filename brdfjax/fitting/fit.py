@@ -96,7 +96,8 @@ class FitResult:
     message: str = ""
     training: Measurements | None = field(default=None, repr=False)
     loss: str = "eq6"
-    calibrations: dict = field(default_factory=dict, repr=False, compare=False)
+    # not an argument: `dataclasses.replace` (another training set, say) starts a new one
+    calibrations: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     @property
     def vector(self) -> np.ndarray:

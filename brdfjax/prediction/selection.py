@@ -20,6 +20,7 @@ recommendation uses.
 from __future__ import annotations
 
 import os
+import shlex
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass
 
@@ -69,9 +70,11 @@ class ModelScore:
 @dataclass
 class Comparison:
     """Every model's `ModelScore` (``scores``, in the order the models were asked for), and
-    their ranking by ``cv_error``."""
+    their ranking by ``cv_error``; ``path``: the file of the data (`Measurements.path`),
+    for the command the recommendation gives."""
 
     scores: list
+    path: str | None = None
 
     @property
     def ranking(self) -> list:
@@ -106,29 +109,38 @@ class Comparison:
             line += f" and {default.cv_error / best.cv_error:.3g}x lower than the paper's model"
         predictor = self.predictor
         if np.isfinite(predictor.corrected_cv_error):
+            file = "FILE" if self.path is None else shlex.quote(str(self.path))
             line += (f"\nto predict unmeasured geometry: {predictor.name} with its learned "
                      f"discrepancy (cv_error {100 * predictor.corrected_cv_error:.3g} %; "
-                     f"brdfjax fit FILE --model {predictor.name} --predict GEOMETRY.csv "
+                     f"brdfjax fit {file} --model {predictor.name} --predict GEOMETRY.csv "
                      f"--predict-out PRED.csv); as a "
                      f"compact analytic model on its own: {best.name}")
         return line
 
     def to_dict(self) -> dict:
+        """For JSON: every model's scores, the ranking, ``best`` (the compact analytic model)
+        and ``predictor`` (the model to predict with, None where no discrepancy was
+        scored)."""
+        predictor = self.predictor
         return {"models": {s.name: s.to_dict() for s in self.scores},
-                "ranking": self.ranking, "best": self.best.name}
+                "ranking": self.ranking, "best": self.best.name,
+                "predictor": (predictor.name if np.isfinite(predictor.corrected_cv_error)
+                              else None)}
 
     def table(self) -> str:
-        """The ranked table a user reads."""
-        lines = [(f"  {'model':<17} {'cv_error (%)':>12} {'+ discrepancy':>13} {'E all (%)':>10} "
+        """The ranked table a user reads (the ``+ discrepancy`` column where it was scored)."""
+        corrected = any(np.isfinite(s.corrected_cv_error) for s in self.scores)
+        column = f" {'+ discrepancy':>13}" if corrected else ""
+        lines = [(f"  {'model':<17} {'cv_error (%)':>12}{column} {'E all (%)':>10} "
                  f"{'AIC':>10} {'BIC':>10}  rho(0/30/60 deg)        at bounds")]
         for name in self.ranking:
             s = next(x for x in self.scores if x.name == name)
             rho = "/".join(f"{v:.3f}" for v in s.reflectance.values())
             flag = " >1!" if any(v > 1 for v in s.reflectance.values()) else ""
-            lines.append(f"  {name:<17} {100 * s.cv_error:12.4g} "
-                         f"{100 * s.corrected_cv_error:13.4g} {100 * s.fit.error:10.4g} "
-                         f"{s.aic:10.1f} {s.bic:10.1f}  {rho + flag:<23} "
-                         f"{', '.join(s.fit.at_bounds) or '-'}")
+            column = f" {100 * s.corrected_cv_error:13.4g}" if corrected else ""
+            lines.append(f"  {name:<17} {100 * s.cv_error:12.4g}{column} "
+                         f"{100 * s.fit.error:10.4g} {s.aic:10.1f} {s.bic:10.1f}  "
+                         f"{rho + flag:<23} {', '.join(s.fit.at_bounds) or '-'}")
         for name in self.ranking:
             s = next(x for x in self.scores if x.name == name)
             params = ", ".join(f"{k}={v:.4g}" for k, v in zip(s.fit.model.names, s.fit.params))
@@ -253,4 +265,4 @@ def compare_models(data: Measurements, models=None, *, seed: int = 0,
         errors = corrected_cv_errors(data, [s.validation for s in scores])
         for score_, error in zip(scores, errors):
             score_.corrected_cv_error = error
-    return Comparison(scores)
+    return Comparison(scores, data.path)
