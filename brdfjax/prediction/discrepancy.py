@@ -45,9 +45,8 @@ share, and within an incidence so does every square of the curve's quadtree (to 
 so that the kept points cover each scan as the data do, and no regular grid aliases with
 the spacing: ordered by azimuth, then zenith, a grid of 64 azimuths by 40 zeniths kept one
 band of zeniths per incidence. In the plane of incidence the order runs along the scan. A
-likelihood costs
-O(M^3) with M <= `MAX_POINTS` whatever the data's size; a prediction costs O(M^2) per point,
-done in blocks of `BLOCK` points.
+likelihood costs O(M^3) with M <= `MAX_POINTS` whatever the data's size; a prediction costs
+O(M^2) per point, done in blocks of `BLOCK` points.
 
 All processes of a call (every cross-validation fold, the full fit, every model of
 ``brdfjax models``) are fitted side by side in one compiled call: their training sets are
