@@ -30,8 +30,18 @@ COMMAND_MODULES = (
 )
 
 
+class _Parser(argparse.ArgumentParser):
+    """Long options are taken in full only (argparse's ``allow_abbrev=False``; its sub-command
+    parsers are of this class too): an abbreviation that works today would stop when a
+    longer option shares its start, and the commands brdfjax suggests to run next
+    (`brdfjax.commands.edited_command`) rename options by their full names."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, allow_abbrev=False, **kwargs)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="brdfjax",
         description="Fit BRDF models (the five-parameter model of Zhang, Wu, Cao and Zhang "
                     f"by default; {OTHER_MODELS}) to measured BRDF data, cross-validate "

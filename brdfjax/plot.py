@@ -174,12 +174,16 @@ def plot_prediction_bands(held, predictions: dict, path, title: str = ""):
     def curve(values):
         return (np.asarray(values) * cos_r)[order]
 
-    # One floor for the shared axis, below every drawn value: a band whose lower edge is
-    # negative (relative scores) runs down to it, the axis' edge.
-    drawn = np.concatenate([curve(held.brdf), *(curve(getattr(p, k)) for _, p in panels
-                                                 for k in ("brdf", "lo68", "lo95"))])
-    drawn = drawn[np.isfinite(drawn) & (drawn > 0)]
-    bottom = 0.5 * drawn.min() if drawn.size else 1e-6
+    def lowest(names) -> float:
+        values = np.concatenate([curve(held.brdf)] + [curve(getattr(p, k)) for _, p in panels
+                                                      for k in names])
+        values = values[np.isfinite(values) & (values > 0)]
+        return float(values.min()) if values.size else 1e-6
+
+    # One floor for the shared axis, below every drawn value but no more than three decades
+    # below the data and predictions: a band whose lower edge is lower (or negative, with
+    # relative scores) runs down to it, the axis' edge.
+    bottom = max(0.5 * lowest(("brdf", "lo68", "lo95")), 1e-3 * lowest(("brdf",)))
     for ax, (label, prediction) in zip(axes[0], panels):
         ax.fill_between(x[order], np.maximum(curve(prediction.lo95), bottom),
                         curve(prediction.hi95), color="C0", alpha=0.2, lw=0, label="95 %")

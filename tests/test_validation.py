@@ -3,6 +3,7 @@
 import dataclasses
 import json
 import re
+import shlex
 
 import numpy as np
 import pytest
@@ -177,8 +178,9 @@ def test_fit_predict_writes_the_corrected_prediction_beside_the_model(tmp_path, 
                                                                      capsys):
     from brdfjax.data.formats import csv
 
-    source = tmp_path / "ggx.csv"
-    csv.write(ggx_data, source)
+    source = tmp_path / "ggx.csv"  # with a wavelength, which a CSV header gives as text
+    csv.write(dataclasses.replace(ggx_data, metadata={**ggx_data.metadata,
+                                                      "wavelength_nm": 633}), source)
     rows = {}
     for kind in ("gp", "none"):
         out = tmp_path / f"{kind}.csv"
@@ -198,6 +200,7 @@ def test_fit_predict_writes_the_corrected_prediction_beside_the_model(tmp_path, 
         assert f"({'the model times its learned correction' if kind == 'gp' else 'the model alone'}"\
                in printed
         assert f"{kind}.bsdf: " in printed and "TIS at 0 deg" in printed
+        assert "# wavelength_nm: 633\n" in (tmp_path / f"{kind}.bsdf").read_text()
         # the table covers the hemisphere, the training data the plane: said, as by --predict
         assert f"warning: {tmp_path / f'{kind}.bsdf'}: " in printed
         assert "lie out of the plane of incidence" in printed
@@ -230,24 +233,28 @@ def test_the_default_model_points_to_one_that_predicts_much_better(tmp_path, ggx
 
 
 def test_a_suggested_command_is_the_users_with_the_model_swapped():
-    """`rerun_command` keeps every option given, renames the files written, quotes for a
-    shell, and puts --model last, where it wins over an abbreviated one."""
+    """`rerun_command` keeps every option given, renames the files written, leaves out a
+    bound on a parameter the new model lacks, quotes for a shell, and keeps what follows
+    ``--`` positional. Options are taken in full only, so none escapes the renaming."""
     import shlex
     from types import SimpleNamespace
 
     from brdfjax.cli import build_parser
     from brdfjax.commands.fitting import rerun_command
 
-    argv = ["fit", "my data.csv", "--model=five", "--validate-incidence", "30", "--predict",
-            "g.csv", "--predict-out", "out/p.csv", "--json=r.json", "--discrepancy", "none",
-            "--mod", "five"]
+    argv = ["fit", "--model=five", "--validate-incidence", "30", "--predict", "g.csv",
+            "--predict-out", "out/p.csv", "--json=r.json", "--discrepancy", "none",
+            "--bound", "b=-80:10", "--bound=kd=0:1", "--", "my data.csv"]
     command = rerun_command(SimpleNamespace(argv=argv), "ggx")
-    assert command == ("brdfjax fit 'my data.csv' --validate-incidence 30 --predict g.csv "
-                       "--predict-out out/p-ggx.csv --json=r-ggx.json --discrepancy none "
-                       "--mod five --model ggx")
+    assert command == ("brdfjax fit --validate-incidence 30 --predict g.csv --predict-out "
+                       "out/p-ggx.csv --json=r-ggx.json --discrepancy none --bound=kd=0:1 "
+                       "--model ggx -- 'my data.csv'")
     args = build_parser().parse_args(shlex.split(command)[1:])
-    assert (args.model, args.file, args.predict_out, args.discrepancy) == (
-        "ggx", "my data.csv", "out/p-ggx.csv", "none")
+    assert (args.model, args.file, args.predict_out, args.json, args.discrepancy,
+            args.bound) == ("ggx", "my data.csv", "out/p-ggx.csv", "r-ggx.json", "none",
+                            ["kd=0:1"])
+    with pytest.raises(SystemExit):  # an abbreviation would escape the renaming: refused
+        build_parser().parse_args(["fit", "d.csv", "--predict", "g.csv", "--predict-o", "p"])
 
 
 def test_scattered_incidences_are_binned():
@@ -263,7 +270,7 @@ def test_scattered_incidences_are_binned():
 def test_models_command_ranks_by_cv_error(tmp_path, capsys):
     out = tmp_path / "models.json"
     code = main(["models", str(DATA / "synthetic" / "white_paint.csv"), "--models",
-                 "lambert,five", "--json", str(out)])
+                 "lambert,five", "--json", str(out), "--wavelength", "1060"])
     assert code == 0
     record = json.loads(out.read_text())
     assert record["ranking"] == ["five", "lambert"] and record["best"] == "five"
@@ -283,10 +290,12 @@ def test_models_command_ranks_by_cv_error(tmp_path, capsys):
     # needs)
     from brdfjax.cli import build_parser
 
-    suggested = re.search(r"(brdfjax fit \S+ [^;)]*)", out).group(1).split()[1:]
+    suggested = shlex.split(re.search(r"(brdfjax fit [^;)]*)", out).group(1))[1:]
     args = build_parser().parse_args(suggested)
     assert args.model == "five" and bool(args.predict) == bool(args.predict_out)
-    assert args.file == str(DATA / "synthetic" / "white_paint.csv")  # the file, not FILE
+    # the user's file and reading options, not FILE; not the options of `models` alone
+    assert (args.file, args.wavelength) == (str(DATA / "synthetic" / "white_paint.csv"), 1060)
+    assert args.json is None
     assert ("models ranked by cv_error, the mean held-out E of 4 interior folds (21, 30, 45, "
             "52 deg); the end incidences 10 and 60 deg are extrapolation") in out
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shlex
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +34,33 @@ def parameters(text: str, model: str = "five") -> np.ndarray:
             f"model" + (f", or a paper sample ({', '.join(PAPER_SAMPLES)})"
                         if model == "five" else ""))
     return np.array(values)
+
+
+def edited_command(argv, command: str, edits: dict, append=()) -> str:
+    """A command line to suggest, made from the user's own (``argv``: the sub-command and
+    its arguments, as `brdfjax.cli.main` keeps them in ``args.argv``).
+
+    ``command`` replaces the sub-command. Each option named in ``edits`` (in full, as the
+    parser takes them, ``--opt value`` or ``--opt=value``) has its value passed through
+    ``edits[option]``, which gives the value to keep or None to leave the option out;
+    every other argument is kept as given. ``append`` follows, before a ``--`` if there is
+    one. Quoted for a POSIX shell."""
+    tokens, kept = list(argv[1:]), [command]
+    while tokens:
+        token = tokens.pop(0)
+        if token == "--":  # what follows is positional
+            kept += list(append) + [token] + tokens
+            break
+        name, equals, value = token.partition("=")
+        if name not in edits or not (equals or tokens):
+            kept.append(token)
+            continue
+        value = edits[name](value if equals else tokens.pop(0))
+        if value is not None:
+            kept += [f"{name}={value}"] if equals else [name, value]
+    else:
+        kept += list(append)
+    return "brdfjax " + shlex.join(kept)
 
 
 def add_model_option(parser, help_text: str = "the model") -> None:

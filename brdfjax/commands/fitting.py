@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import dataclasses
 import re
-import shlex
 import warnings
 from pathlib import Path
 
@@ -15,6 +14,7 @@ from brdfjax.commands import (
     add_reader_options,
     angles,
     check_writable,
+    edited_command,
     positive_int,
     reader_options,
     zeniths,
@@ -291,8 +291,8 @@ def run_per_incidence(data, args) -> None:
         if args.abg_out:
             wavelength = args.wavelength_um
             if wavelength is None:
-                nm = data.metadata.get("wavelength_nm")
-                wavelength = float(nm) / 1000 if nm else 0.0
+                nm = data.wavelength_nm
+                wavelength = nm / 1000 if nm else 0.0
             name = args.abg_name or re.sub(r"[^A-Za-z0-9_-]+", "_", data.name)[:32]
             write_atomically(args.abg_out, catalog_entry(name, rows, wavelength))
             print(f"Zemax ABg catalog entry {name.upper()} ({wavelength:g} um, {len(rows)} "
@@ -327,9 +327,10 @@ def choose_model(data, seed: int, predicting: bool = False) -> str:
     predictive-discrepancy) the latter's 95 % intervals are narrower (median half-width 21 %
     against 29 %) and its 68 % intervals hold 68 % against 80 % (target 60-76 %), at the cost
     of a lower 95 % coverage (91.4 % against 96.1 %; lowest run 78 % against 82 %) and a
-    slightly higher median error (5.1 % against 4.7 %; the former's numbers measured on
-    2026-12-03, before the process's subsample changed). The model so chosen may fit poorly
-    on its own (lambert on NiTE on steel A) and predict well only with its correction."""
+    slightly higher median error (5.1 % against 4.7 %; the numbers of the choice by
+    cv_error were measured on 2026-12-03, before the process's subsample changed). The model
+    so chosen may fit poorly on its own (lambert on NiTE on steel A) and predict well only
+    with its correction."""
     from brdfjax.prediction.selection import compare_models
 
     comparison = compare_models(data, seed=seed, discrepancy="gp" if predicting else "none")
@@ -347,7 +348,8 @@ def choose_model(data, seed: int, predicting: bool = False) -> str:
 
 
 def validate_and_predict(result, data, args, geometry=None):
-    """``--cv`` prints the cross-validation; ``--predict`` writes the predictive intervals.
+    """``--cv`` prints the cross-validation; ``--predict`` makes the predictive intervals
+    (written with the other files, `write_outputs`).
 
     ``geometry`` is the ``--predict`` file, read before the fit (`run_fit`).
 
@@ -429,24 +431,19 @@ OUTPUT_OPTIONS = ("--predict-out", "--json", "--plot", "--plot-3d", "--plot-corn
 
 
 def rerun_command(args, model: str) -> str:
-    """The command line the user gave (``args.argv``, kept by `brdfjax.cli.main`) with
-    ``--model model`` instead of theirs, and each file it writes renamed ``NAME-MODEL.EXT``
-    so that the rerun keeps this run's files; quoted for a POSIX shell. ``--model`` goes
-    last, where it overrides an abbreviated one."""
-    tokens, kept = list(args.argv), []
-    while tokens:
-        token = tokens.pop(0)
-        name, equals, value = token.partition("=")
-        if name == "--model":
-            if not equals and tokens:
-                tokens.pop(0)
-        elif name in OUTPUT_OPTIONS and equals:
-            kept.append(f"{name}={renamed(value, model)}")
-        elif name in OUTPUT_OPTIONS and tokens:
-            kept += [token, renamed(tokens.pop(0), model)]
-        else:
-            kept.append(token)
-    return "brdfjax " + shlex.join([*kept, "--model", model])
+    """The command line the user gave (``args.argv``) with ``--model model`` instead of
+    theirs (`brdfjax.commands.edited_command`): each file it writes renamed
+    ``NAME-MODEL.EXT``, so that the rerun keeps this run's files, and each ``--bound`` on a
+    parameter ``model`` lacks left out."""
+    from brdfjax.models import get
+
+    names = get(model).names
+    argv = getattr(args, "argv", None) or ["fit", args.file, "--predict", args.predict,
+                                           "--predict-out", args.predict_out]
+    edits = {"--model": lambda _: None,
+             "--bound": lambda item: item if item.partition("=")[0].strip() in names else None,
+             **dict.fromkeys(OUTPUT_OPTIONS, lambda path: renamed(path, model))}
+    return edited_command(argv, "fit", edits, append=["--model", model])
 
 
 def renamed(path: str, model: str) -> str:
@@ -612,9 +609,9 @@ def check_export_grid(step: float, incidences) -> None:
 def export(path, result, data, args, calibration) -> None:
     """Write ``--export``'s table (`brdfjax.data.formats.zemax.write_model` or
     `brdfjax.data.formats.astm.write_model_astm`) of the prediction (corrected by
-    ``calibration``'s discrepancy, if any) on the ``--export-*`` grid, say its TIS, and
-    warn of the nodes the calibration does not cover, as ``--predict`` does
-    (`brdfjax.prediction.intervals.range_notes`, on Zemax's grid above the horizon)."""
+    ``calibration``'s discrepancy, if any; `run_fit` calibrates whenever it exports) on the
+    ``--export-*`` grid, say its TIS, and warn of the table's nodes the calibration does
+    not cover, as ``--predict`` does (`brdfjax.prediction.intervals.range_notes`)."""
     from brdfjax.data.formats.astm import write_model_astm
     from brdfjax.data.formats.zemax import (
         HORIZON_DEG,
@@ -630,26 +627,38 @@ def export(path, result, data, args, calibration) -> None:
     incidences = np.sort(np.asarray(args.export_incidences, float))
     correction = calibration.discrepancy
     options = {"sample": data.name, "model": result.model, "correction": correction,
-               "wavelength_nm": data.metadata.get("wavelength_nm")}
+               "wavelength_nm": data.wavelength_nm}
     azimuths = np.arange(0, 180 + step / 2, step)
     radials = hemisphere_radials(incidences, step)
     if path.endswith(".bsdf"):
         totals = write_model(path, result.params, incidences, azimuths, radials, **options)
+        aoi, theta_r, phi_r = grid_angles(incidences, azimuths, radials)
+        above = theta_r < HORIZON_DEG - 1e-9
+        nodes = np.stack([aoi[above], theta_r[above], phi_r[above]], axis=1)
     else:
-        write_model_astm(path, result.params, incidences, np.arange(0, 90, step), azimuths,
-                         **options)
+        zeniths = np.arange(0, 90, step)
+        write_model_astm(path, result.params, incidences, zeniths, azimuths, **options)
         # the TIS of the same prediction on Zemax's grid, for comparison with the .bsdf
         _, _, _, table = model_table(result.params, incidences, azimuths, radials,
                                      result.model, correction)
         totals = [tis(block, aoi, azimuths, radials) for aoi, block in zip(incidences, table)]
+        nodes = np.stack([g.ravel() for g in np.meshgrid(incidences, zeniths, azimuths,
+                                                         indexing="ij")], axis=1)
     what = "model x learned discrepancy" if correction is not None else "model"
     print(f"{path}: {what} on a {step:g} deg grid; TIS at "
           + ", ".join(f"{aoi:g} deg {t:.4g}" for aoi, t in zip(incidences, totals)))
-    aoi, theta_r, phi_r = grid_angles(incidences, azimuths, radials)
-    above = theta_r < HORIZON_DEG - 1e-9
     for note in range_notes(calibration, result.training.in_plane,
-                            *np.radians([aoi[above], theta_r[above], phi_r[above]])):
+                            *np.radians(distinct_directions(nodes).T), what="table nodes"):
         print(f"  warning: {path}: {note}")
+
+
+def distinct_directions(nodes) -> np.ndarray:
+    """The distinct geometries among ``nodes`` (K, 3) of ``(theta_i, theta_r, phi_r)`` in
+    degrees: a table repeats the normal (and Zemax's grid the specular ray) at every
+    azimuth."""
+    nodes = np.array(nodes, dtype=float)
+    nodes[:, 2] = np.where(nodes[:, 1] < 1e-9, 0.0, np.mod(nodes[:, 2], 360.0))
+    return np.unique(np.round(nodes, 6), axis=0)
 
 
 def incidence_lines(errors: dict, result) -> list[str]:

@@ -2,7 +2,12 @@
 
 from __future__ import annotations
 
-from brdfjax.commands import add_reader_options, check_writable, reader_options
+from brdfjax.commands import (
+    add_reader_options,
+    check_writable,
+    edited_command,
+    reader_options,
+)
 from brdfjax.prediction.intervals import DISCREPANCIES  # NumPy only: --help imports no JAX
 
 
@@ -45,7 +50,15 @@ def run_models(args) -> None:
                                 discrepancy=args.discrepancy)
     print(f"{data.name}: {len(data)} points, models ranked by cv_error, the "
           f"{comparison.best.validation.cv_folds}")
-    print(comparison.table())
+
+    def fit_command(name: str) -> str:
+        """The user's file and options, as a fit that predicts with model ``name``."""
+        return edited_command(getattr(args, "argv", None) or ["models", args.file], "fit",
+                              dict.fromkeys(("--models", "--json", "--plot"), lambda _: None),
+                              append=["--model", name, "--predict", "GEOMETRY.csv",
+                                      "--predict-out", "PRED.csv"])
+
+    print(comparison.table(command=fit_command))
     if args.json:
         write_atomically(args.json, json_text(comparison.to_dict()))
     if args.plot:

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from brdfjax.angles import check_radians
+from brdfjax.angles import TOLERANCE, check_radians
 
 
 class DataError(ValueError):
@@ -103,6 +103,13 @@ class Measurements:
     @property
     def name(self) -> str:
         return str(self.metadata.get("sample", "sample"))
+
+    @property
+    def wavelength_nm(self) -> float | None:
+        """The metadata's wavelength in nm as a number (a CSV header gives it as text), or
+        None."""
+        value = self.metadata.get("wavelength_nm")
+        return None if value in (None, "") else float(value)
 
     @property
     def incidences_deg(self) -> np.ndarray:
@@ -341,7 +348,7 @@ def _problems(arrays: dict, geometry_only: bool = False) -> dict[int, tuple]:
                                   "signed in-plane angle must be converted to a zenith angle "
                                   "and an azimuth (0 or 180)"))
         azimuth = np.degrees(arrays["phi_r"])
-        for row, i in new(np.abs(azimuth) > 360 + 1e-9):
+        for row, i in new(np.abs(azimuth) > 360 + np.degrees(TOLERANCE)):  # check_radians
             problems[row] = (i, f"phi_r = {azimuth[row, i]:g} deg is beyond one turn",
                              ("azimuths lie in [-360, 360] deg: 0 is the source side, 180 "
                               "the specular side"))

@@ -166,8 +166,9 @@ def cross_validate(data: Measurements, model=None, *, seed: int = 0, bounds=None
     if len(groups) < 3:
         raise DataError(f"cross-validation needs at least 3 incidences, the data have "
                         f"{len(groups)}", data.path,
-                        hint=("measure more incidences (on the command line, --cv, --predict "
-                              "and --export cross-validate: leave them out)"))
+                        hint=("measure more incidences: each is held out in turn (on the "
+                              "command line by --cv, --predict, --export, --model auto and "
+                              "brdfjax models)"))
     samples = [data.select(~mask) for _, _, _, mask in groups] + ([data] if full_fit else [])
     results = fit_batch(samples, model=model, seed=seed, bounds=bounds, **options)
     geometry = prepare(data, model)

@@ -42,8 +42,8 @@ fixed (`subsample`): the points sorted by incidence, then along a Z-order curve 
 reflected direction projected on the surface, ``(sin theta_r cos phi_r, sin theta_r sin
 phi_r)``, and `MAX_POINTS` of them evenly spaced along that order. Every incidence keeps its
 share, and within an incidence so does every square of the curve's quadtree (to a point),
-so that the kept points cover each scan as the data do, and no regular grid aliases with
-the spacing: ordered by azimuth, then zenith, a grid of 64 azimuths by 40 zeniths kept one
+so that the kept points cover each scan as the data do, and no regular grid leaves a band
+of it out: ordered by azimuth, then zenith, a grid of 64 azimuths by 40 zeniths kept one
 band of zeniths per incidence. In the plane of incidence the order runs along the scan. A
 likelihood costs O(M^3) with M <= `MAX_POINTS` whatever the data's size; a prediction costs
 O(M^2) per point, done in blocks of `BLOCK` points.
@@ -127,17 +127,18 @@ def subsample(theta_i, theta_r, phi_r, limit: int = MAX_POINTS) -> np.ndarray:
     module docstring)."""
     if np.size(theta_i) <= limit:
         return np.arange(np.size(theta_i))
+    incidence = np.round(np.degrees(theta_i), 6)  # as the folds group them
     order = np.lexsort((_z_order(np.sin(theta_r) * np.cos(phi_r),
-                                 np.sin(theta_r) * np.sin(phi_r)), theta_i))
+                                 np.sin(theta_r) * np.sin(phi_r)), incidence))
     return np.sort(order[np.round(np.linspace(0, order.size - 1, limit)).astype(int)])
 
 
 def _z_order(x, y) -> np.ndarray:
     """The position along a Z-order (Morton) curve of points of the square [-1, 1]^2 (16
-    bits a coordinate, interleaved): the points of any square of the curve's quadtree are
-    consecutive in it."""
+    bits a coordinate, interleaved): the points of any dyadic square of it (the curve's
+    quadtree) are consecutive in it."""
     def spread(v):  # the 16 bits of v to the even bits of 32
-        v = np.floor((np.clip(v, -1.0, 1.0) + 1) / 2 * 65535).astype(np.uint64)
+        v = np.minimum(np.floor((np.clip(v, -1.0, 1.0) + 1) * 32768), 65535).astype(np.uint64)
         for shift, mask in ((8, 0x00FF00FF), (4, 0x0F0F0F0F), (2, 0x33333333),
                             (1, 0x55555555)):
             v = (v | (v << np.uint64(shift))) & np.uint64(mask)

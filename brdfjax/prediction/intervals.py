@@ -480,28 +480,34 @@ def predict(result, geometry: Measurements, calibration: Calibration | None = No
                       discrepancy=calibration.kind, warnings=notes, **bounds)
 
 
-def range_notes(calibration: Calibration, in_plane: bool, theta_i, theta_r, phi_r) -> list:
+def range_notes(calibration: Calibration, in_plane: bool, theta_i, theta_r, phi_r, *,
+                what: str = "points") -> list:
     """What predictions at these angles (radians) should say (`Prediction.warnings`): the
     points whose incidence lies beyond `Calibration.reach`, and, for training data in the
-    plane of incidence (``in_plane``), the points out of it."""
+    plane of incidence (``in_plane``), the points out of it. ``what`` names them:
+    ``points`` (a prediction, with its intervals) or ``table nodes`` (an export: values
+    alone)."""
     notes = []
+    intervals = " and intervals" if what == "points" else ""
     incidence = np.degrees(theta_i)
     low, high = calibration.reach
     beyond = (incidence < low - 1e-6) | (incidence > high + 1e-6)
     if beyond.any():
-        notes.append(f"{int(beyond.sum())} of {beyond.size} points have incidences beyond "
+        notes.append(f"{int(beyond.sum())} of {beyond.size} {what} have incidences beyond "
                      f"{low:g}-{high:g} deg, the range the end folds calibrate (the measured "
                      f"{calibration.low:g}-{calibration.high:g} deg widened by the spacing of "
-                     "the outermost incidences): their predictions and intervals assume the "
+                     f"the outermost incidences): their predictions{intervals} assume the "
                      "model errs there as it does one incidence step out; measure nearer "
                      "incidences to trust them")
     outside_plane = (np.abs(np.sin(phi_r)) > 1e-9) & (theta_r > 1e-9)
     if in_plane and outside_plane.any():
-        notes.append(f"{int(outside_plane.sum())} of {outside_plane.size} points lie out of the "
-                     "plane of incidence, where the training data have none: the model's "
-                     "shape there is untested, the learned correction is applied as at the "
-                     "same half and difference angles in the plane, and the intervals are "
-                     "calibrated in the plane only; measure out of the plane to trust them")
+        applied = ("" if calibration.discrepancy is None else ", the learned correction is "
+                   "applied as at the same half and difference angles in the plane")
+        calibrated = ", and the intervals are calibrated in the plane only" if intervals else ""
+        notes.append(f"{int(outside_plane.sum())} of {outside_plane.size} {what} lie out of "
+                     "the plane of incidence, where the training data have none: the model's "
+                     f"shape there is untested{applied}{calibrated}; measure out of the plane "
+                     "to trust them")
     return notes
 
 

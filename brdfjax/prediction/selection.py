@@ -94,8 +94,11 @@ class Comparison:
         first = next(s for s in self.scores if s.name == corrected[0])
         return first if np.isfinite(first.corrected_cv_error) else self.best
 
-    def recommendation(self) -> str:
-        """One line: the model to use and why."""
+    def recommendation(self, command=None) -> str:
+        """One line: the model to use and why; with the learned discrepancy scored, a
+        second: the model to predict with, and ``command(name)``, the command line that
+        predicts with model ``name`` (by default ``brdfjax fit FILE --model NAME --predict
+        GEOMETRY.csv --predict-out PRED.csv``, FILE the data's `path`)."""
         best = self.best
         errors = {s.name: s.cv_error for s in self.scores}
         tied = tied_first(errors)
@@ -109,12 +112,14 @@ class Comparison:
             line += f" and {default.cv_error / best.cv_error:.3g}x lower than the paper's model"
         predictor = self.predictor
         if np.isfinite(predictor.corrected_cv_error):
-            file = "FILE" if self.path is None else shlex.quote(str(self.path))
+            if command is None:
+                file = "FILE" if self.path is None else shlex.quote(str(self.path))
+                command = (lambda name: f"brdfjax fit {file} --model {name} --predict "
+                           "GEOMETRY.csv --predict-out PRED.csv")
             line += (f"\nto predict unmeasured geometry: {predictor.name} with its learned "
                      f"discrepancy (cv_error {100 * predictor.corrected_cv_error:.3g} %; "
-                     f"brdfjax fit {file} --model {predictor.name} --predict GEOMETRY.csv "
-                     f"--predict-out PRED.csv); as a "
-                     f"compact analytic model on its own: {best.name}")
+                     f"{command(predictor.name)}); as a compact analytic model on its own: "
+                     f"{best.name}")
         return line
 
     def to_dict(self) -> dict:
@@ -127,8 +132,9 @@ class Comparison:
                 "predictor": (predictor.name if np.isfinite(predictor.corrected_cv_error)
                               else None)}
 
-    def table(self) -> str:
-        """The ranked table a user reads (the ``+ discrepancy`` column where it was scored)."""
+    def table(self, command=None) -> str:
+        """The ranked table a user reads (the ``+ discrepancy`` column where it was scored),
+        and the `recommendation` (``command``: as it takes it)."""
         corrected = any(np.isfinite(s.corrected_cv_error) for s in self.scores)
         column = f" {'+ discrepancy':>13}" if corrected else ""
         lines = [(f"  {'model':<17} {'cv_error (%)':>12}{column} {'E all (%)':>10} "
@@ -145,7 +151,7 @@ class Comparison:
             s = next(x for x in self.scores if x.name == name)
             params = ", ".join(f"{k}={v:.4g}" for k, v in zip(s.fit.model.names, s.fit.params))
             lines.append(f"  {name}: {params}")
-        lines.append(self.recommendation())
+        lines.append(self.recommendation(command))
         return "\n".join(lines)
 
 
