@@ -78,7 +78,10 @@ def main(argv=None) -> int:
     command runs in the calling thread and an interrupt returns 130.
     """
     args = build_parser().parse_args(argv)
-    args.argv = list(sys.argv[1:] if argv is None else argv)  # for commands that suggest one
+    # The sub-command and its arguments, for commands that suggest another (the options
+    # before it, -v alone, take no value: the first token that names it is it).
+    given = list(sys.argv[1:] if argv is None else argv)
+    args.argv = given[given.index(args.command):]
     if argv is not None or threading.current_thread() is not threading.main_thread():
         return _run(args)
     outcome = {}

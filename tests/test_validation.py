@@ -223,8 +223,8 @@ def test_the_default_model_points_to_one_that_predicts_much_better(tmp_path, ggx
     source = tmp_path / "ggx.csv"
     csv.write(ggx_data, source)
     out = tmp_path / "five.csv"
-    assert main(["fit", str(source), "--uncertainty", "none", "--predict", str(source),
-                 "--predict-out", str(out)]) == 0
+    assert main(["-v", "fit", str(source), "--uncertainty", "none", "--predict", str(source),
+                 "--predict-out", str(out)]) == 0  # an option before the command is not kept
     printed = capsys.readouterr().out
     assert "note: ggx predicts the held-out incidences" in printed, printed
     renamed = tmp_path / "five-ggx.csv"  # this run's file is kept
