@@ -320,8 +320,12 @@ def test_a_tie_within_a_tenth_of_a_per_cent_goes_to_the_smaller_model():
                                   ("five", 0.1456))]
     assert Comparison(scores).recommendation() == (
         "recommended: ggx, the fewest parameters of ggx, ggx+backscatter, tied within 0.1 % for "
-        "the lowest held-out error (cv_error 0.7286 %), 20x lower than five's and 20x lower "
-        "than the paper's model")
+        "the lowest held-out error (cv_error 0.7286 %), 20x lower than five's (the paper's "
+        "model)")
+    scores.append(ModelScore("lambert", SimpleNamespace(), SimpleNamespace(cv_error=0.0364),
+                             0.0, 0.0, {}))
+    assert Comparison(scores).recommendation().endswith(
+        "5x lower than lambert's and 20x lower than the paper's model")
 
 
 def test_the_models_plot_keeps_its_legends_off_the_curves(tmp_path):

@@ -104,11 +104,13 @@ class Comparison:
         tied = tied_first(errors)
         others = [s for s in self.scores if s.name not in tied and np.isfinite(s.cv_error)]
         line = f"recommended: {choice_line(errors, 'held-out error', 'cv_error ')}"
-        if others:
-            runner = min(others, key=lambda s: s.cv_error)
-            line += f", {runner.cv_error / best.cv_error:.3g}x lower than {runner.name}'s"
         default = next((s for s in self.scores if s.name == "five"), None)
-        if default is not None and default is not best and np.isfinite(default.cv_error):
+        runner = min(others, key=lambda s: s.cv_error) if others else None
+        if runner is not None:
+            line += f", {runner.cv_error / best.cv_error:.3g}x lower than {runner.name}'s"
+            line += " (the paper's model)" if runner is default else ""
+        if (default is not None and default is not best and default is not runner
+                and np.isfinite(default.cv_error)):
             line += f" and {default.cv_error / best.cv_error:.3g}x lower than the paper's model"
         predictor = self.predictor
         if np.isfinite(predictor.corrected_cv_error):
