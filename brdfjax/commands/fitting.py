@@ -325,12 +325,10 @@ def choose_model(data, seed: int, predicting: bool = False) -> str:
     (`~brdfjax.prediction.selection.Comparison.predictor`, what ``brdfjax models``
     recommends for prediction). On the 14 RT-300S runs (BENCHMARKS.md,
     predictive-discrepancy) the latter's 95 % intervals are narrower (median half-width 21 %
-    against 29 %) and its 68 % intervals hold 68 % against 80 % (target 60-76 %), at the cost
-    of a lower 95 % coverage (91.4 % against 96.1 %; lowest run 78 % against 82 %) and a
-    slightly higher median error (5.1 % against 4.7 %; the numbers of the choice by
-    cv_error were measured on 2026-12-03, before the process's subsample changed). The model
-    so chosen may fit poorly on its own (lambert on NiTE on steel A) and predict well only
-    with its correction."""
+    against 28 %) and its 68 % intervals hold 68 % against 80 % (target 60-76 %), at the cost
+    of a lower 95 % coverage (91.4 % against 96.4 %) and a slightly higher median error
+    (5.1 % against 4.6 %). The model so chosen may fit poorly on its own (lambert on NiTE
+    on steel A) and predict well only with its correction."""
     from brdfjax.prediction.selection import compare_models
 
     comparison = compare_models(data, seed=seed, discrepancy="gp" if predicting else "none")
