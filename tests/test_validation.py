@@ -232,6 +232,21 @@ def test_the_default_model_points_to_one_that_predicts_much_better(tmp_path, ggx
             f"{renamed} --model ggx") in printed
 
 
+def test_an_export_says_when_its_grid_is_too_coarse_for_the_tis(tmp_path, capsys):
+    """A table's TIS is a quadrature on its own grid: at 90 deg steps (radials 0, 90 and
+    180 deg from the specular ray) it misses the white paint's lobe; the export says so, by
+    comparison with half the step. At 5 deg the lobe is resolved: nothing said."""
+    white = str(DATA / "synthetic" / "white_paint.csv")
+    printed = {}
+    for step in ("90", "5"):
+        assert main(["fit", white, "--uncertainty", "none", "--discrepancy", "none",
+                     "--export", str(tmp_path / f"w{step}.bsdf"), "--export-step", step,
+                     "--export-incidences", "30"]) == 0
+        printed[step] = capsys.readouterr().out
+    assert "with half the step (45 deg) the TIS at 30 deg moves by" in printed["90"]
+    assert "with half the step" not in printed["5"]
+
+
 def test_a_suggested_command_is_the_users_with_the_model_swapped():
     """`rerun_command` keeps every option given, renames the files written, leaves out a
     bound on a parameter the new model lacks, quotes for a shell, and keeps what follows
