@@ -224,11 +224,11 @@ def run_fit(args) -> None:
         return
     if args.uncertainty == "mcmc":  # before the fit, not after it
         from brdfjax.models import get
-        from brdfjax.uncertainty.likelihood import NOISE_NAMES
+        from brdfjax.uncertainty.likelihood import coordinate_names
         from brdfjax.uncertainty.mcmc import check_walkers
 
-        check_walkers(args.walkers, get(args.model).size
-                      + (0 if data.sigma is not None else len(NOISE_NAMES)))
+        check_walkers(args.walkers, len(coordinate_names(get(args.model),
+                                                         data.sigma is not None)))
     if args.abg_out:
         raise ValueError("--abg-out needs --model abg --per-incidence")
     result = fit(data, args.method, model=args.model, seed=args.seed, loss=args.loss,
@@ -611,14 +611,7 @@ def export(path, result, data, args, calibration) -> None:
     ``--export-*`` grid, say its TIS, and warn of the table's nodes the calibration does
     not cover, as ``--predict`` does (`brdfjax.prediction.intervals.range_notes`)."""
     from brdfjax.data.formats.astm import write_model_astm
-    from brdfjax.data.formats.zemax import (
-        HORIZON_DEG,
-        grid_angles,
-        hemisphere_radials,
-        model_table,
-        tis,
-        write_model,
-    )
+    from brdfjax.data.formats.zemax import HORIZON_DEG, grid_angles, hemisphere_radials, write_model
     from brdfjax.prediction.intervals import range_notes
 
     step = args.export_step
@@ -637,9 +630,7 @@ def export(path, result, data, args, calibration) -> None:
         zeniths = np.arange(0, 90, step)
         write_model_astm(path, result.params, incidences, zeniths, azimuths, **options)
         # the TIS of the same prediction on Zemax's grid, for comparison with the .bsdf
-        _, _, _, table = model_table(result.params, incidences, azimuths, radials,
-                                     result.model, correction)
-        totals = [tis(block, aoi, azimuths, radials) for aoi, block in zip(incidences, table)]
+        totals = zemax_tis(result, correction, incidences, step)
         nodes = np.stack([g.ravel() for g in np.meshgrid(incidences, zeniths, azimuths,
                                                          indexing="ij")], axis=1)
     what = "model x learned discrepancy" if correction is not None else "model"
@@ -647,12 +638,15 @@ def export(path, result, data, args, calibration) -> None:
           + ", ".join(f"{aoi:g} deg {t:.4g}" for aoi, t in zip(incidences, totals)))
     if step >= 2:  # half the step: four times the nodes (the default grid, with the
         # discrepancy, on 2 cores: 0.5 s warm, 1.4 s the first time)
-        drift, where = tis_drift(result, correction, incidences, step / 2, totals)
-        if drift > TIS_DRIFT:
-            print(f"  note: {path}: with half the step ({step / 2:g} deg) the TIS at {where:g} "
-                  f"deg moves by {100 * drift:.2g} %: the grid is coarse for this lobe, and a "
-                  "ray tracer interpolating it errs as much; a finer --export-step follows the "
-                  "prediction better")
+        finer = zemax_tis(result, correction, incidences, step / 2)
+        drift = np.abs(np.asarray(totals) - finer) / np.maximum(np.abs(finer),
+                                                                np.finfo(float).tiny)
+        worst = int(np.argmax(drift))
+        if drift[worst] > TIS_DRIFT:
+            print(f"  note: {path}: with half the step ({step / 2:g} deg) the TIS at "
+                  f"{incidences[worst]:g} deg moves by {100 * drift[worst]:.2g} %: the grid is "
+                  "coarse for this lobe, and a ray tracer interpolating it errs as much; a "
+                  "finer --export-step follows the prediction better")
     for note in range_notes(calibration, result.training.in_plane,
                             *np.radians(distinct_directions(nodes).T), what="table nodes"):
         print(f"  warning: {path}: {note}")
@@ -664,19 +658,18 @@ def export(path, result, data, args, calibration) -> None:
 TIS_DRIFT = 0.05
 
 
-def tis_drift(result, correction, incidences, finer: float, totals) -> tuple[float, float]:
-    """The largest relative change of the TIS ``totals`` (one per incidence) when the same
-    prediction is tabulated on Zemax's grid with the step ``finer``, and its incidence."""
+def zemax_tis(result, correction, incidences, step: float) -> np.ndarray:
+    """The TIS of ``result``'s prediction (corrected by ``correction``, if any) at each
+    incidence, tabulated on Zemax's grid with the step ``step`` (deg), as `export` writes
+    it."""
     from brdfjax.data.formats.zemax import hemisphere_radials, model_table, tis
 
-    azimuths = np.arange(0, 180 + finer / 2, finer)
-    radials = hemisphere_radials(incidences, finer)
+    azimuths = np.arange(0, 180 + step / 2, step)
+    radials = hemisphere_radials(incidences, step)
     _, _, _, table = model_table(result.params, incidences, azimuths, radials, result.model,
                                  correction)
-    fine = np.array([tis(block, aoi, azimuths, radials) for aoi, block in zip(incidences, table)])
-    drift = np.abs(np.asarray(totals) - fine) / np.maximum(np.abs(fine), np.finfo(float).tiny)
-    worst = int(np.argmax(drift))
-    return float(drift[worst]), float(incidences[worst])
+    return np.array([tis(block, aoi, azimuths, radials)
+                     for aoi, block in zip(incidences, table)])
 
 
 def distinct_directions(nodes) -> np.ndarray:

@@ -78,7 +78,13 @@ class Posterior(NamedTuple):
     @property
     def names(self) -> tuple:
         """Names of the sampling coordinates."""
-        return self.model.names + (() if self.sigma is not None else NOISE_NAMES)
+        return coordinate_names(self.model, self.sigma is not None)
+
+
+def coordinate_names(model: Model, sigma_given: bool) -> tuple:
+    """The sampling coordinates of ``model``'s posterior: its parameters, then the noise
+    model's two scales where the data give no sigma."""
+    return model.names + (() if sigma_given else NOISE_NAMES)
 
 
 def build_posterior(data: Measurements, bounds: Bounds | None = None,

@@ -104,7 +104,7 @@ def write(data: Measurements, path) -> None:
     header = {SAMPLE_KEY if name == "sample" else name.upper().replace(" ", "_"): value
               for name, value in data.metadata.items() if name not in NOT_IN_HEADER}
     _write_table(path, header, data.theta_i, data.theta_r, data.phi_r, data.brdf,
-                 _output_name(data.metadata.get("wavelength_nm")))
+                 _output_name(data.wavelength_nm))
 
 
 def write_model_astm(path, params, incidences_deg, theta_r_deg=tuple(range(0, 90, 5)),
