@@ -13,7 +13,8 @@ process's own uncertainty:
 
 1. Every fold's model and a process fitted to that fold's training residuals predict the
    held-out incidence: ``mu`` and ``sigma`` of the log residual. Each held-out point gets the
-   score ``r = |log(max(y, 0) + floor) - log(y_hat + floor) - mu| / sigma``.
+   score ``r = |log(max(y, 0) + floor) - log(y_hat + floor) - mu| / sigma``, with the
+   process's own ``floor`` (`brdfjax.prediction.discrepancy.residual_floor`).
 2. At level ``p`` (68.27 % or 95 %) the factor ``q`` is the ``ceil((n + 1) p)``-th smallest
    of the n scores (infinite when n is too small).
 3. At a new geometry the full fit's model ``y_hat`` and the process fitted to all training
@@ -32,8 +33,8 @@ measure (BENCHMARKS.md, predictive-discrepancy).
 
 With ``discrepancy="none"`` the prediction is the model itself and the score
 ``r = |y - y_hat| / (|y_hat| + floor)`` (the interval ``y_hat +- q (|y_hat| + floor)``).
-Either way ``floor`` is `FLOOR_FRACTION` of the median measured |BRDF| (a stand-in for the
-instrument's absolute noise). Interior folds calibrate geometry inside the fitted incidence
+In both relative scores ``floor`` is `FLOOR_FRACTION` of the median measured |BRDF| (a
+stand-in for the instrument's absolute noise). Interior folds calibrate geometry inside the fitted incidence
 range; geometry outside it (extrapolation) uses every fold, the end folds included. The end
 folds extrapolate by the spacing of the two outermost incidences on their side: that is how
 far beyond the measured range a prediction is calibrated (`Calibration.reach`). Predictions
@@ -184,12 +185,12 @@ def calibrate_all(data: Measurements, validations: list, *,
 
     calibrations = []
     for validation, (folds, full_process) in zip(
-            (v for v, _ in validations), _corrected_folds(data, validations, floor)):
+            (v for v, _ in validations), _corrected_folds(data, validations)):
         scores = {"sigma": [], "relative": []}
         corrected, widths = {}, []
         for c in folds:
             measured = data.brdf[c.held]
-            residual = log_residual(measured, c.value[c.held], floor)
+            residual = log_residual(measured, c.value[c.held], full_process.floor)
             scores["sigma"].append(np.abs(residual - c.mu) / c.sigma)
             scores["relative"].append(np.abs(measured - c.centre) / (np.abs(c.centre) + floor))
             corrected[c.fold.label] = _corrected_error(c, data)
@@ -211,9 +212,8 @@ def corrected_cv_errors(data: Measurements, validations: list) -> list[float]:
     model), with only the interior folds' processes fitted (all of them in one batched call;
     the intervals also need the end folds' and the full data's, `calibrate_all`). NaN for a
     model without interior folds. Call it from one thread, as `calibrate_all`."""
-    floor = _floor(data)
     return [float(np.mean([_corrected_error(c, data) for c in folds])) if folds else np.nan
-            for folds, _ in _corrected_folds(data, [(v, None) for v in validations], floor,
+            for folds, _ in _corrected_folds(data, [(v, None) for v in validations],
                                              interior_only=True)]
 
 
@@ -226,8 +226,7 @@ def compile_corrected_cv_errors(data: Measurements, validation, models: int) -> 
 
     masks = [~held for held in _held_out(data, validation, interior_only=True)[1]] * models
     if masks:  # the sets' sizes are what matters: the data stand in for the models' values
-        compile_discrepancies(_training_sets(data, [data.brdf] * len(masks), masks,
-                                             _floor(data)))
+        compile_discrepancies(_training_sets(data, [data.brdf] * len(masks), masks))
 
 
 class _Corrected(NamedTuple):
@@ -243,7 +242,7 @@ class _Corrected(NamedTuple):
     centre: np.ndarray
 
 
-def _corrected_folds(data: Measurements, validations: list, floor: float, *,
+def _corrected_folds(data: Measurements, validations: list, *,
                      interior_only: bool = False) -> list:
     """Per ``(validation, fitted)``: every fold's (or every interior fold's) `_Corrected`,
     and the process fitted to all points with the model's ``fitted`` parameters (None with
@@ -261,7 +260,7 @@ def _corrected_folds(data: Measurements, validations: list, floor: float, *,
                    for v in vectors]
         masks += [~h for h in held] + ([] if interior_only else [np.ones(len(data), bool)])
         per_model.append((folds, held, len(vectors)))
-    processes, values = iter(_fit_processes(data, values, masks, floor)), iter(values)
+    processes, values = iter(_fit_processes(data, values, masks)), iter(values)
     out = []
     for folds, held, count in per_model:
         sets = [(next(values), next(processes)) for _ in range(count)]  # this model's
@@ -331,21 +330,28 @@ def _split(folds, scores) -> tuple[np.ndarray, np.ndarray]:
     return (np.concatenate(interior) if interior else np.zeros(0), np.concatenate(scores))
 
 
-def _fit_processes(data: Measurements, values: list, masks: list, floor: float) -> list:
+def _fit_processes(data: Measurements, values: list, masks: list) -> list:
     """One `brdfjax.prediction.discrepancy.Discrepancy` per (model values, training mask), fitted in
     one batched call on at most `brdfjax.prediction.discrepancy.MAX_POINTS` of each mask's
     points."""
-    from brdfjax.prediction.discrepancy import fit_discrepancies
+    from brdfjax.prediction.discrepancy import fit_discrepancies, residual_floor
 
-    return fit_discrepancies(_training_sets(data, values, masks, floor), floor,
+    return fit_discrepancies(_training_sets(data, values, masks), residual_floor(data.brdf),
                              not data.in_plane)
 
 
-def _training_sets(data: Measurements, values: list, masks: list, floor: float) -> list:
+def _training_sets(data: Measurements, values: list, masks: list) -> list:
     """Each process's (features, log residuals) on at most
     `brdfjax.prediction.discrepancy.MAX_POINTS` of its mask's points."""
-    from brdfjax.prediction.discrepancy import MAX_POINTS, features, log_residual, subsample
+    from brdfjax.prediction.discrepancy import (
+        MAX_POINTS,
+        features,
+        log_residual,
+        residual_floor,
+        subsample,
+    )
 
+    floor = residual_floor(data.brdf)
     x = features(data.theta_i, data.theta_r, data.phi_r, not data.in_plane)
     sets = []
     for value, mask in zip(values, masks):
