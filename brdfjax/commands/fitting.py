@@ -325,9 +325,9 @@ def choose_model(data, seed: int, predicting: bool = False) -> str:
     (`~brdfjax.prediction.selection.Comparison.predictor`, what ``brdfjax models``
     recommends for prediction). On the 14 RT-300S runs (BENCHMARKS.md,
     predictive-discrepancy) the latter's 95 % intervals are narrower (median half-width 21 %
-    against 28 %) and its 68 % intervals hold 68 % against 80 % (target 60-76 %), at the cost
-    of a lower 95 % coverage (91.4 % against 96.4 %) and a slightly higher median error
-    (5.1 % against 4.6 %). The model so chosen may fit poorly on its own (lambert on NiTE
+    against 27 %) and its 68 % intervals hold 68 % against 79 % (target 60-76 %), at the cost
+    of a lower 95 % coverage (91.0 % against 96.3 %) and a slightly higher median error
+    (5.0 % against 4.5 %). The model so chosen may fit poorly on its own (lambert on NiTE
     on steel A) and predict well only with its correction."""
     from brdfjax.prediction.selection import compare_models
 
