@@ -18,8 +18,9 @@ RADIANS_HINT = r"radians \(files and the command line take degrees\); did you me
     lambda: brdfjax.brdf(PAINT, 0.5, 0.2, 180.0),
     lambda: brdfjax.reflectance(PAINT, 30.0),
     lambda: brdfjax.reflectance(PAINT, [0.0, 60.0]),
+    lambda: brdfjax.scene(0.5, 45.0, np.pi),
 ], ids=["brdf theta_i", "brdf theta_r", "projected_brdf", "brdf phi_r", "reflectance",
-        "reflectance list"])
+        "reflectance list", "scene"])
 def test_degrees_given_as_radians_are_refused(call):
     with pytest.raises(ValueError, match=RADIANS_HINT):
         call()

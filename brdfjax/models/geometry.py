@@ -37,6 +37,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from brdfjax.angles import check_radians
 from brdfjax.models.base import broadcast_angles, safe_divide, safe_sqrt
 
 
@@ -95,7 +96,11 @@ def scene(theta_i, theta_r, phi_r, constants: ShadowingConstants = PAPER_CONSTAN
 
     Returns:
         A `Scene` with the broadcast shape of the inputs.
+
+    Raises:
+        ValueError: host angles outside their domain (degrees given for radians, say).
     """
+    check_radians(("phi_r",), theta_i=theta_i, theta_r=theta_r, phi_r=phi_r)
     if in_plane is None:
         try:
             in_plane = is_in_plane(phi_r)
