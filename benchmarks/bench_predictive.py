@@ -268,7 +268,10 @@ def bench_discrepancy(models, runs):
               "process's incidence input and the lower bound of its length scale were chosen "
               "on 2026-12-03 from results pooled over all 14 runs (the first *Tried on "
               "2026-12-03* note below names them, and a confirm run, 01singularity), so the "
-              "confirm runs were seen for those two choices."), "",
+              "confirm runs were seen for those two choices; and on 2026-12-06 a rule for "
+              "`--model auto`, decided on the decide runs, was run on the confirm runs and not "
+              "kept (the note *Tried on 2026-12-06 (11:25-12:10)* below), so `auto`'s rule was "
+              "kept having seen them."), "",
              "Run-to-run repeatability, the physical anchor (95th percentile of |y - mean of "
              "the other two runs| / (|mean| + 5 % of the median |BRDF|) at the geometries all "
              "three runs share): " + ", ".join(f"{m} {100 * v[0]:.0f} %"

@@ -126,6 +126,32 @@ def test_discrepancy_of_an_exact_model_is_noise(white_paint):
     np.testing.assert_array_equal(again.hi95[:len(prediction.hi95)], prediction.hi95)
 
 
+def test_the_process_has_a_floor_of_its_own_and_the_intervals_invert_it(
+        monkeypatch, ggx_data, ggx_validation, ggx_fit):
+    """The process learns log(y + F) - log(y_hat + F) with F 20 % of the median |BRDF|;
+    the relative scores keep 5 %. With the process-scaled score, the prediction and its
+    interval are (y_hat + F) exp(mu +- q sigma) - F, with that F (computed here from the
+    data, not from the code's constants)."""
+    from brdfjax.prediction import intervals
+
+    monkeypatch.setattr(intervals, "SIGMA_PREFERENCE", np.inf)  # the process-scaled score
+    calibration = calibrate(ggx_data, ggx_validation, discrepancy="gp", fitted=ggx_fit.vector)
+    median = np.median(np.abs(ggx_data.brdf))
+    assert calibration.score == "sigma"
+    assert calibration.discrepancy.floor == pytest.approx(0.2 * median, rel=1e-12)
+    assert calibration.floor == pytest.approx(0.05 * median, rel=1e-12)
+    new = ggx_data.select(np.isin(np.round(np.degrees(ggx_data.theta_i)), [25.0, 40.0]))
+    prediction = predict(ggx_fit, new, calibration)
+    mu, sigma = calibration.discrepancy.predict(new.theta_i, new.theta_r, new.phi_r)
+    q, floor = calibration.factor(0.95, False), 0.2 * median
+    base = np.maximum(prediction.model_brdf, 0.0) + floor
+    np.testing.assert_allclose(prediction.brdf, base * np.exp(mu) - floor, rtol=1e-12)
+    np.testing.assert_allclose(prediction.lo95, base * np.exp(mu - q * sigma) - floor,
+                               rtol=1e-12)
+    np.testing.assert_allclose(prediction.hi95, base * np.exp(mu + q * sigma) - floor,
+                               rtol=1e-12)
+
+
 def test_prediction_says_where_extrapolation_is_not_calibrated(ggx_data, ggx_validation,
                                                                ggx_fit):
     from brdfjax.prediction.intervals import PredictionWarning

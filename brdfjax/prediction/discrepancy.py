@@ -6,8 +6,8 @@ depends on, so a Gaussian process learns it from the training points and correct
 prediction where nothing was measured:
 
 - the residual of each point is the log ratio ``r = log(max(y, 0) + floor) -
-  log(y_hat + floor)``, with ``floor`` `FLOOR_FRACTION` (20 %) of the median measured |BRDF|
-  (`residual_floor`): relative where the BRDF is well above it, absolute near zero, so that
+  log(y_hat + floor)``, with ``floor`` `RESIDUAL_FLOOR_FRACTION` (20 %) of the median
+  measured |BRDF| (`residual_floor`): relative where the BRDF is well above it, absolute near zero, so that
   the faint wings, where a goniometer's noise is largest relative to the signal, do not
   weigh as much as the lobe in the process's likelihood;
 - its inputs are the half and difference angles of Rusinkiewicz's coordinates,
@@ -90,13 +90,15 @@ _FAR = 1e4  # padding coordinates: exp(-(1e4 / 5)^2 / 2) is exactly 0 in float64
 # 3.79, 0.3 3.81, 0.5 4.11, 1.0 4.28; through the whole calibration, ggx's pooled median
 # error 4.05 -> 3.81 %, auto's 4.30 -> 4.13 %, five's 7.53 -> 7.62 %). Choosing it per
 # process by maximum likelihood of y (its Jacobian included) gave 4.36 % on those runs: not
-# kept. BENCHMARKS.md (predictive-discrepancy) has the rest.
-FLOOR_FRACTION = 0.2
+# kept. BENCHMARKS.md (predictive-discrepancy) has the rest. `START_NOISE`, `HYPER_BOX` and
+# intervals.SIGMA_PREFERENCE were chosen with the floor of 5 % and not chosen again.
+RESIDUAL_FLOOR_FRACTION = 0.2
 
 
 def residual_floor(brdf) -> float:
-    """The floor of the log residual: `FLOOR_FRACTION` of the median measured |BRDF| (1/sr)."""
-    return FLOOR_FRACTION * float(np.median(np.abs(brdf)))
+    """The floor of the log residual (1/sr): `RESIDUAL_FLOOR_FRACTION` of the median
+    measured |BRDF|."""
+    return RESIDUAL_FLOOR_FRACTION * float(np.median(np.abs(brdf)))
 
 
 def features(theta_i, theta_r, phi_r, azimuth: bool) -> np.ndarray:
@@ -311,7 +313,8 @@ class Discrepancy:
         floor: the absolute floor of the log residual (1/sr).
         azimuth: whether ``phi_d`` is an input (out-of-plane training data).
         mean, amplitude, noise: the learned constant mean, kernel amplitude and white noise
-            (log units: 0.1 is about 10 %).
+            (log units of ``y + floor``: 0.1 is about 10 % where the BRDF is well above the
+            floor, 12 % at the median |BRDF|).
         lengths: the learned length scale of each input (rad), the incidence's last.
         share: the part of the kernel's variance common to every incidence (0-1).
         points: how many training points the process holds (after `subsample`).

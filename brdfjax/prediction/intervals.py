@@ -34,11 +34,12 @@ measure (BENCHMARKS.md, predictive-discrepancy).
 With ``discrepancy="none"`` the prediction is the model itself and the score
 ``r = |y - y_hat| / (|y_hat| + floor)`` (the interval ``y_hat +- q (|y_hat| + floor)``).
 In both relative scores ``floor`` is `FLOOR_FRACTION` of the median measured |BRDF| (a
-stand-in for the instrument's absolute noise). Interior folds calibrate geometry inside the fitted incidence
-range; geometry outside it (extrapolation) uses every fold, the end folds included. The end
-folds extrapolate by the spacing of the two outermost incidences on their side: that is how
-far beyond the measured range a prediction is calibrated (`Calibration.reach`). Predictions
-are still given past it, with a warning (`Prediction.warnings`).
+stand-in for the instrument's absolute noise). Interior folds calibrate geometry inside the
+fitted incidence range; geometry outside it (extrapolation) uses every fold, the end folds
+included. The end folds extrapolate by the spacing of the two outermost incidences on their
+side: that is how far beyond the measured range a prediction is calibrated
+(`Calibration.reach`). Predictions are still given past it, with a warning
+(`Prediction.warnings`).
 
 Assumptions, stated plainly: the score of a new measurement is exchangeable with the
 scores of the held-out incidences (the model errs at an unmeasured incidence as it errs
@@ -77,7 +78,8 @@ class Calibration:
     Attributes:
         interior: scores of the interior folds' held-out points.
         every: scores of every fold's held-out points.
-        floor: the absolute floor of the score's scale (1/sr).
+        floor: the absolute floor of the relative scores (1/sr); the process-scaled score
+            uses the process's own floor (``discrepancy.floor``).
         low, high: the fitted incidence range (deg): inside it ``interior`` calibrates.
         reach: the incidences (deg) up to which extrapolation is calibrated (`reach_of`).
         discrepancy: the process fitted to all training residuals (None: no correction).
@@ -119,7 +121,8 @@ class Calibration:
         return float(np.sort(scores)[rank - 1]) if rank <= scores.size else np.inf
 
     def to_dict(self) -> dict:
-        record = {"discrepancy": self.kind, "score": self.score, "floor": self.floor,
+        record = {"discrepancy": self.kind, "score": self.score,
+                  "relative_floor": self.floor,
                   "calibration_points": {"interior": int(self.interior.size),
                                          "every": int(self.every.size)},
                   "factor95": {"interior": self.factor(LEVELS["95"], False),
