@@ -370,16 +370,20 @@ def bench_nist(models):
     import brdfjax
 
     lines = ["## Predictions with a learned discrepancy on real data not used to build it", "",
-             ("NIST's PTFE (Germer; 1824 points out of the plane at each of four wavelengths, "
-              "incidences 0, 15, 30, 45, 60 and 75 deg): each interior incidence (15-60 deg) "
+             ("NIST's PTFE (Germer; a near-Lambertian diffuser, BRDF 0.23-0.71 1/sr, median "
+              "0.314; 1824 points out of the plane at each of four wavelengths, which differ "
+              "by about 1 % at the median geometry, so that the four are nearly one surface "
+              "measured four times; incidences 0, 15, 30, 45, 60 and 75 deg): each interior "
+              "incidence (15-60 deg) "
               "held out in turn, the model fitted on the other five, predicted by the model "
               "alone (`--discrepancy none`) and by the model times its learned discrepancy "
               "(`gp`), each with its split-conformal intervals, as section "
               "predictive-discrepancy does for the RT-300S runs. Until 2026-12-06 these data "
               "served only to time predictions (section predictive-speed): no setting of the "
-              "discrepancy or its intervals was chosen on them. Each fold's process holds "
-              "256 of its 1520 training points (`discrepancy.subsample`). Issue 23's targets "
-              "were set for the RT-300S runs; here they are a check."), "",
+              "discrepancy or its intervals was chosen on them. Every process holds 256 "
+              "points (`discrepancy.subsample`): of the about 1520 training points for the "
+              "one that predicts, of about 1216 for each calibration fold's. Issue 23's "
+              "targets were set for the RT-300S runs; here they are a check."), "",
              ("| model | wavelength (nm) | 95 % none / gp | 68 % none / gp | median 95 % "
               "half-width none / gp | median rel. error none / gp |"),
              "|---|---|---|---|---|---|"]

@@ -132,11 +132,20 @@ def test_the_process_has_a_floor_of_its_own_and_the_intervals_invert_it(
     the relative scores keep 5 %. With the process-scaled score, the prediction and its
     interval are (y_hat + F) exp(mu +- q sigma) - F, with that F (computed here from the
     data, not from the code's constants)."""
-    from brdfjax.prediction import intervals
+    from brdfjax.prediction import discrepancy, intervals
 
     monkeypatch.setattr(intervals, "SIGMA_PREFERENCE", np.inf)  # the process-scaled score
+    floors, log_residual = [], discrepancy.log_residual
+
+    def recorded(measured, predicted, floor):  # every log residual: the processes' and scores'
+        floors.append(floor)
+        return log_residual(measured, predicted, floor)
+
+    monkeypatch.setattr(discrepancy, "log_residual", recorded)
     calibration = calibrate(ggx_data, ggx_validation, discrepancy="gp", fitted=ggx_fit.vector)
     median = np.median(np.abs(ggx_data.brdf))
+    # 6 processes (5 folds and the full data), then the 5 folds' scores
+    assert len(floors) == 11 and floors == pytest.approx([0.2 * median] * 11, rel=1e-12)
     assert calibration.score == "sigma"
     assert calibration.discrepancy.floor == pytest.approx(0.2 * median, rel=1e-12)
     assert calibration.floor == pytest.approx(0.05 * median, rel=1e-12)

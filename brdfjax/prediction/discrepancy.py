@@ -7,9 +7,9 @@ prediction where nothing was measured:
 
 - the residual of each point is the log ratio ``r = log(max(y, 0) + floor) -
   log(y_hat + floor)``, with ``floor`` `RESIDUAL_FLOOR_FRACTION` (20 %) of the median
-  measured |BRDF| (`residual_floor`): relative where the BRDF is well above it, absolute near zero, so that
-  the faint wings, where a goniometer's noise is largest relative to the signal, do not
-  weigh as much as the lobe in the process's likelihood;
+  measured |BRDF| (`residual_floor`): relative where the BRDF is well above it, absolute
+  near zero, so that the faint wings, where a goniometer's noise is largest relative to the
+  signal, do not weigh as much as the lobe in the process's likelihood;
 - its inputs are the half and difference angles of Rusinkiewicz's coordinates,
   ``(theta_h, theta_d)`` in radians, plus the folded difference azimuth ``phi_d`` (in
   ``[0, pi/2]``: reciprocity and the mirror symmetry of an isotropic BRDF) when the training
