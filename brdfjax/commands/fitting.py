@@ -611,7 +611,7 @@ def export(path, result, data, args, calibration) -> None:
     ``--export-*`` grid, say its TIS, and warn of the table's nodes the calibration does
     not cover, as ``--predict`` does (`brdfjax.prediction.intervals.range_notes`)."""
     from brdfjax.data.formats.astm import write_model_astm
-    from brdfjax.data.formats.zemax import HORIZON_DEG, grid_angles, hemisphere_radials, write_model
+    from brdfjax.data.formats.zemax import HORIZON_DEG, grid_angles, write_model
     from brdfjax.prediction.intervals import range_notes
 
     step = args.export_step
@@ -619,8 +619,7 @@ def export(path, result, data, args, calibration) -> None:
     correction = calibration.discrepancy
     options = {"sample": data.name, "model": result.model, "correction": correction,
                "wavelength_nm": data.wavelength_nm}
-    azimuths = np.arange(0, 180 + step / 2, step)
-    radials = hemisphere_radials(incidences, step)
+    azimuths, radials = zemax_axes(incidences, step)
     if path.endswith(".bsdf"):
         totals = write_model(path, result.params, incidences, azimuths, radials, **options)
         aoi, theta_r, phi_r = grid_angles(incidences, azimuths, radials)
@@ -658,14 +657,20 @@ def export(path, result, data, args, calibration) -> None:
 TIS_DRIFT = 0.05
 
 
+def zemax_axes(incidences, step: float) -> tuple[np.ndarray, np.ndarray]:
+    """The azimuths (0-180 deg) and radials (the whole hemisphere) of `export`'s Zemax grid
+    at the step ``step`` (deg)."""
+    from brdfjax.data.formats.zemax import hemisphere_radials
+
+    return np.arange(0, 180 + step / 2, step), hemisphere_radials(incidences, step)
+
+
 def zemax_tis(result, correction, incidences, step: float) -> np.ndarray:
     """The TIS of ``result``'s prediction (corrected by ``correction``, if any) at each
-    incidence, tabulated on Zemax's grid with the step ``step`` (deg), as `export` writes
-    it."""
-    from brdfjax.data.formats.zemax import hemisphere_radials, model_table, tis
+    incidence, tabulated on `export`'s Zemax grid with the step ``step`` (deg)."""
+    from brdfjax.data.formats.zemax import model_table, tis
 
-    azimuths = np.arange(0, 180 + step / 2, step)
-    radials = hemisphere_radials(incidences, step)
+    azimuths, radials = zemax_axes(incidences, step)
     _, _, _, table = model_table(result.params, incidences, azimuths, radials, result.model,
                                  correction)
     return np.array([tis(block, aoi, azimuths, radials)
