@@ -64,9 +64,10 @@ def fit_without(data, incidence, model):
 
 def choices(data, incidence, discrepancy: str) -> dict:
     """``--model auto``'s choices with ``incidence`` held out, as ``brdfjax fit`` makes them:
-    ``{"none": lowest cv_error}`` and, with ``discrepancy="gp"``, ``"gp"``: the lowest
-    cv_error of the model times its learned discrepancy (``Comparison.predictor``), which
-    ``fit --model auto --predict`` uses. One comparison gives both."""
+    ``{"none": lowest cv_error}`` and, with ``discrepancy="gp"``, ``"gp"``: the model to
+    predict with (``Comparison.predictor``: the one-standard-error rule on the cv_error of
+    each model times its learned discrepancy), which ``fit --model auto --predict`` uses.
+    One comparison gives both."""
     from brdfjax.prediction.selection import compare_models
 
     comparison = compare_models(data.select(~data.incidence_mask([incidence])),
@@ -284,7 +285,11 @@ def bench_discrepancy(models, runs):
               "confirm runs were seen for those two choices; and on 2026-12-06 a rule for "
               "`--model auto`, decided on the decide runs, was run on the confirm runs and not "
               "kept (the note *Tried on 2026-12-06 (11:25-12:10)* below), so `auto`'s rule was "
-              "kept having seen them."), "",
+              "kept having seen them. Later that day `auto`'s rule became the "
+              "one-standard-error rule (`Comparison.predictor`) for its miss on a confirm "
+              "run, NiTE on invar B: decided on the decide runs, where it improved every "
+              "figure, then run on the confirm runs (the note *Chosen on 2026-12-06 "
+              "(13:20-13:35)* below)."), "",
              "Run-to-run repeatability, the physical anchor (95th percentile of |y - mean of "
              "the other two runs| / (|mean| + 5 % of the median |BRDF|) at the geometries all "
              "three runs share): " + ", ".join(f"{m} {100 * v[0]:.0f} %"

@@ -85,16 +85,16 @@ def test_predictive_intervals_cover_new_measurements_of_an_exact_model(ggx_data,
 
 def test_models_discrepancy_column_is_the_calibrations(ggx_data, ggx_validation, ggx_fit):
     """`brdfjax models` fits only the interior folds' processes for its discrepancy column
-    (`corrected_cv_errors`); the intervals' calibration fits every fold's and the full
+    (`corrected_cv_terms`); the intervals' calibration fits every fold's and the full
     data's, padded to another size: both give the corrected cv_error, the mean of the
     interior folds' held-out E (to 1e-6: the processes' padding differs)."""
-    from brdfjax.prediction.intervals import corrected_cv_errors
+    from brdfjax.prediction.intervals import corrected_cv_terms, cv_error_of
 
     calibration = calibrate(ggx_data, ggx_validation, discrepancy="gp", fitted=ggx_fit.vector)
     assert calibration.interior_labels == ("25", "40", "55")
     interior = [calibration.corrected_errors[label] for label in calibration.interior_labels]
     assert calibration.corrected_cv_error == pytest.approx(np.mean(interior), rel=1e-12)
-    (column,) = corrected_cv_errors(ggx_data, [ggx_validation])
+    column = cv_error_of(corrected_cv_terms(ggx_data, [ggx_validation])[0])
     assert column == pytest.approx(calibration.corrected_cv_error, rel=1e-6)
 
 
@@ -378,6 +378,44 @@ def test_a_tie_within_a_tenth_of_a_per_cent_goes_to_the_smaller_model():
         "5x lower than lambert's and 20x lower than the paper's model")
 
 
+def test_the_model_to_predict_with_is_chosen_by_the_one_standard_error_rule():
+    """``Comparison.predictor``: of the models whose corrected cv_error is within one
+    standard error of the lowest (the difference's, paired point by point), the one with
+    the lowest cv_error alone. The same mean difference (0.1) decides both ways with the
+    noise of the pairs; the standard errors are worked by hand."""
+    from types import SimpleNamespace
+
+    from brdfjax.prediction.selection import Comparison, ModelScore, paired_standard_error
+
+    def score(name, cv_error, *folds):
+        return ModelScore(name, SimpleNamespace(), SimpleNamespace(cv_error=cv_error), 0.0,
+                          0.0, {}, tuple(np.array(f, float) for f in folds))
+
+    # two folds: differences (1, 3) and (1, 0, -1): variances 2 / 2 and 1 / 3; the mean of
+    # the two folds' means has the standard error sqrt(4 / 3) / 2 = 1 / sqrt(3)
+    assert paired_standard_error(score("a", 0, [1, 3], [2, 2, 2]),
+                                 score("b", 0, [0, 0], [1, 2, 3])) == pytest.approx(3**-0.5)
+    beckmann = score("beckmann", 0.02, [0.1, 0.1, 0.1, 0.1])
+    lambert = score("lambert", 0.5, [0.1, 0.1, 0.1, 0.12])
+    # ggx minus beckmann: (0.2, 0, 0.1, 0.1), mean 0.1, standard error sqrt(0.02 / 3 / 4)
+    # = 0.041 < 0.1: ggx is measurably worse corrected, and beckmann, the lowest, predicts
+    ggx = score("ggx", 0.01, [0.3, 0.1, 0.2, 0.2])
+    comparison = Comparison([lambert, beckmann, ggx])
+    assert comparison.lowest_corrected is beckmann and comparison.predictor is beckmann
+    assert "beckmann with its learned discrepancy (cv_error 10 %; " in (
+        comparison.recommendation())
+    # (0.3, -0.1, -0.1, 0.3): mean 0.1, standard error sqrt(0.16 / 3 / 4) = 0.115 > 0.1:
+    # within the noise, so ggx, the lowest cv_error alone, predicts (not lambert, also
+    # within it), and the recommendation says why
+    ggx = score("ggx", 0.01, [0.4, 0.0, 0.0, 0.4])
+    comparison = Comparison([lambert, beckmann, ggx])
+    assert comparison.lowest_corrected is beckmann and comparison.predictor is ggx
+    assert ("ggx with its learned discrepancy (cv_error 20 %, within one standard error of "
+            "the lowest, beckmann's 10 %; ") in comparison.recommendation()
+    # none scored: the best model alone
+    assert Comparison([score("ggx", 0.01), score("five", 0.1)]).predictor.name == "ggx"
+
+
 def test_the_models_plot_keeps_its_legends_off_the_curves(tmp_path):
     """Each panel's legend stands outside its axes (it covered the curves of two panels)."""
     from brdfjax.plot import plot_models
@@ -446,9 +484,10 @@ def test_model_auto_predicts_with_the_model_best_corrected(monkeypatch, capsys):
     """``fit --model auto`` with --predict chooses by the cv_error of each model times its
     learned discrepancy (``Comparison.predictor``), and says so; without it, by cv_error.
     On NiTE on steel A, of lambert and ggx, ggx has the lower cv_error (0.73 % against 51 %)
-    but lambert corrected by its process the lower corrected one (0.11 % against 0.30 %):
-    the two rules choose differently. (Two candidates instead of ten, to keep the test
-    short; the comparison is real.)"""
+    but lambert corrected by its process the lower corrected one, by more than the standard
+    error of the difference (0.12 % against 0.25 %, 0.07 % apart): the two rules choose
+    differently. (Two candidates instead of ten, to keep the test short; the comparison is
+    real.)"""
     from brdfjax.commands.fitting import choose_model
     from brdfjax.prediction import selection
 

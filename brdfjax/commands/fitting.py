@@ -407,16 +407,16 @@ def suggest_model(result, args, validation, calibration) -> None:
     """Say so when `BETTER_MODEL` predicts the held-out incidences much better than the
     paper's model, with the command that uses it. Only its held-out error is needed: its
     cross-validation, corrected by its discrepancy on the interior folds where the
-    prediction has one (`brdfjax.prediction.intervals.corrected_cv_errors`), not a fit to
+    prediction has one (`brdfjax.prediction.intervals.corrected_cv_terms`), not a fit to
     all the data nor intervals."""
     from brdfjax.prediction.cross_validation import cross_validate
-    from brdfjax.prediction.intervals import corrected_cv_errors
+    from brdfjax.prediction.intervals import corrected_cv_terms, cv_error_of
 
     other = cross_validate(result.training, BETTER_MODEL, seed=args.seed)
     ours, theirs = validation.cv_error, other.cv_error
     if calibration.discrepancy is not None:
         ours = calibration.corrected_cv_error
-        (theirs,) = corrected_cv_errors(result.training, [other])
+        theirs = cv_error_of(corrected_cv_terms(result.training, [other])[0])
     if np.isfinite(ours) and theirs * BETTER_MODEL_FACTOR < ours:
         print(f"  note: {BETTER_MODEL} predicts the held-out incidences {ours / theirs:.3g}x "
               f"better than the paper's model (cv_error {100 * theirs:.3g} % against "

@@ -30,7 +30,7 @@ import numpy as np
 
 from brdfjax.data.measurements import DataError, Measurements, incidence_groups
 from brdfjax.fitting.batch import fit_batch
-from brdfjax.fitting.objective import brdf_values, prepare, relative_error, targets
+from brdfjax.fitting.objective import brdf_values, prepare, targets
 from brdfjax.models import get
 
 
@@ -140,9 +140,19 @@ class CrossValidation:
 def held_out_error(values, data: Measurements, mask) -> float:
     """E of Eq. (6) of the f_r ``values`` (1/sr, one per point of ``data``) on the points
     ``mask`` alone, unweighted: cv_error's scale, whatever loss the fit minimised."""
+    return float(np.mean(held_out_terms(values, data, mask)))
+
+
+def held_out_terms(values, data: Measurements, mask) -> np.ndarray:
+    """The points' terms of `held_out_error`, its mean: each point's squared error of the
+    projected BRDF over the mean squared projected measurement. Two models' terms on the
+    same points, paired, give the standard error of the difference of their errors
+    (`brdfjax.prediction.selection.paired_standard_error`)."""
     target, _ = targets(data)
-    projected = np.asarray(values) * np.cos(data.theta_r)
-    return relative_error(projected[mask], target[mask], np.ones(int(np.sum(mask))))
+    projected = np.asarray(values)[mask] * np.cos(data.theta_r[mask])
+    measured = target[mask]
+    difference = projected - measured
+    return difference * difference / np.mean(measured * measured)
 
 
 def cross_validate(data: Measurements, model=None, *, seed: int = 0, bounds=None,

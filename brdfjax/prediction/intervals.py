@@ -196,7 +196,7 @@ def calibrate_all(data: Measurements, validations: list, *,
             residual = log_residual(measured, c.value[c.held], full_process.floor)
             scores["sigma"].append(np.abs(residual - c.mu) / c.sigma)
             scores["relative"].append(np.abs(measured - c.centre) / (np.abs(c.centre) + floor))
-            corrected[c.fold.label] = _corrected_error(c, data)
+            corrected[c.fold.label] = float(np.mean(_corrected_terms(c, data)))
             if c.fold.interior:
                 widths.append((c.value[c.held], c.mu, c.sigma))
         candidates = [Calibration(*_split(validation.folds, found), **common,
@@ -209,19 +209,27 @@ def calibrate_all(data: Measurements, validations: list, *,
     return calibrations
 
 
-def corrected_cv_errors(data: Measurements, validations: list) -> list[float]:
-    """cv_error of each model corrected by its learned discrepancy: what
-    `Calibration.corrected_cv_error` reports, for cross-validations of ``data`` (one per
-    model), with only the interior folds' processes fitted (all of them in one batched call;
-    the intervals also need the end folds' and the full data's, `calibrate_all`). NaN for a
-    model without interior folds. Call it from one thread, as `calibrate_all`."""
-    return [float(np.mean([_corrected_error(c, data) for c in folds])) if folds else np.nan
+def corrected_cv_terms(data: Measurements, validations: list) -> list[tuple]:
+    """For cross-validations of ``data`` (one per model), each model's held-out terms of E
+    of Eq. (6) corrected by its learned discrepancy, one array per interior fold
+    (`brdfjax.prediction.cross_validation.held_out_terms`): a fold's E is the mean of its
+    terms, and the mean of the folds' E is the corrected cv_error that
+    `Calibration.corrected_cv_error` reports. Only the interior folds' processes are fitted
+    (all of them in one batched call; the intervals also need the end folds' and the full
+    data's, `calibrate_all`). Empty for a model without interior folds. Call it from one
+    thread, as `calibrate_all`."""
+    return [tuple(_corrected_terms(c, data) for c in folds)
             for folds, _ in _corrected_folds(data, [(v, None) for v in validations],
                                              interior_only=True)]
 
 
+def cv_error_of(terms: tuple) -> float:
+    """The cv_error of `corrected_cv_terms`' folds: the mean of their E (NaN for none)."""
+    return float(np.mean([fold.mean() for fold in terms])) if terms else float("nan")
+
+
 def compile_corrected_cv_errors(data: Measurements, validation, models: int) -> None:
-    """Compile what `corrected_cv_errors` of ``models`` cross-validations of ``data`` folded
+    """Compile what `corrected_cv_terms` of ``models`` cross-validations of ``data`` folded
     as ``validation`` runs, without running it (no LAPACK call, so safe while other
     threads fit): ``brdfjax models`` so compiles it while the other models fit, instead of
     after them all (about 2 s of one core's time at the end of the first run)."""
@@ -289,13 +297,14 @@ def _floor(data: Measurements) -> float:
     return FLOOR_FRACTION * float(np.median(np.abs(data.brdf)))
 
 
-def _corrected_error(corrected: _Corrected, data: Measurements) -> float:
-    """The held-out E of Eq. (6) of one fold's corrected prediction."""
-    from brdfjax.prediction.cross_validation import held_out_error
+def _corrected_terms(corrected: _Corrected, data: Measurements) -> np.ndarray:
+    """The terms of the held-out E of Eq. (6) of one fold's corrected prediction (E is their
+    mean)."""
+    from brdfjax.prediction.cross_validation import held_out_terms
 
     full = corrected.value.copy()
     full[corrected.held] = corrected.centre
-    return held_out_error(full, data, corrected.held)
+    return held_out_terms(full, data, corrected.held)
 
 
 def _median_width(calibration: Calibration, interior: list) -> float:
