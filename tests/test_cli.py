@@ -442,7 +442,18 @@ def test_abg_per_incidence_writes_a_catalog_entry(tmp_path, capsys):
         np.testing.assert_allclose([a, b, g], [row["A"], row["B"], row["g"]], rtol=1e-7)
 
 
-def test_abg_out_needs_abg_per_incidence(tmp_path, capsys):
-    assert main(["fit", str(EC1), "--model", "ggx", "--per-incidence", "--abg-out",
-                 str(tmp_path / "x.txt")]) != 0
-    assert "--model abg" in capsys.readouterr().err
+def test_abg_out_needs_abg_per_incidence(tmp_path, capsys, monkeypatch):
+    """Refused before any work: with --model auto, before the models are compared (it
+    raised only after them, a minute later), and nothing is written."""
+    from brdfjax.prediction import selection
+
+    def compared(*args, **kwargs):
+        raise AssertionError("the models were compared before the refusal")
+
+    monkeypatch.setattr(selection, "compare_models", compared)
+    for options in (["--model", "ggx", "--per-incidence"], ["--model", "abg"],
+                    ["--model", "auto", "--predict", str(EC1), "--predict-out",
+                     str(tmp_path / "p.csv")]):
+        assert main(["fit", str(EC1), *options, "--abg-out", str(tmp_path / "x.txt")]) != 0
+        assert "it needs --model abg --per-incidence" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())

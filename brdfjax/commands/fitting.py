@@ -190,6 +190,10 @@ def run_fit(args) -> None:
         raise ValueError("--plot-corner needs --uncertainty laplace or mcmc")
     if bool(args.predict) != bool(args.predict_out):
         raise ValueError("--predict GEOMETRY and --predict-out PRED.csv go together")
+    if args.abg_out and (args.model != "abg" or not args.per_incidence):
+        raise ValueError(f"--abg-out exports ABg rows: it needs --model abg --per-incidence, "
+                         f"not --model {args.model}"
+                         + ("" if args.per_incidence else " without --per-incidence"))
     if args.uncertainty == "mcmc":
         from brdfjax.uncertainty.mcmc import require_emcee
 
@@ -229,8 +233,6 @@ def run_fit(args) -> None:
 
         check_walkers(args.walkers, len(coordinate_names(get(args.model),
                                                          data.sigma is not None)))
-    if args.abg_out:
-        raise ValueError("--abg-out needs --model abg --per-incidence")
     result = fit(data, args.method, model=args.model, seed=args.seed, loss=args.loss,
                  validate_incidences_deg=held_out(data, args),
                  bounds=make_bounds(parse_bounds(args.bound), model=args.model))
@@ -260,8 +262,6 @@ def run_per_incidence(data, args) -> None:
     from brdfjax.prediction.cross_validation import fit_per_incidence
 
     model = get(args.model)
-    if args.abg_out and model.name != "abg":
-        raise ValueError(f"--abg-out exports ABg rows: use --model abg, not {model.name}")
     unsupported = [flag for flag, value in (("--plot", args.plot), ("--cv", args.cv),
                                             ("--predict", args.predict),
                                             ("--plot-corner", args.plot_corner),
