@@ -352,6 +352,16 @@ def test_too_few_walkers_are_refused_before_the_fit(tmp_path, capsys, monkeypatc
     assert "emcee needs at least 10 walkers for 5 sampled coordinates, got 3" in (
         capsys.readouterr().err)
     assert list(tmp_path.iterdir()) == []
+    # with --model auto, before the models are compared (it was refused only after them),
+    # for the largest candidate: ggx+ggx, 7 parameters with the sigma of the data
+    from brdfjax.prediction import selection
+
+    monkeypatch.setattr(selection, "compare_models", no_work)
+    assert main(["fit", data, "--model", "auto", "--uncertainty", "mcmc", "--walkers", "12",
+                 "--json", str(tmp_path / "r.json")]) == 1
+    assert ("--model auto may choose ggx+ggx: emcee needs at least 14 walkers for 7 sampled "
+            "coordinates, got 12") in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
 
 
 @pytest.mark.parametrize("argv, said", [

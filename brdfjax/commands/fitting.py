@@ -219,6 +219,8 @@ def run_fit(args) -> None:
         from brdfjax.data.formats import load_geometry
 
         geometry = load_geometry(args.predict, **reader_options(args))
+    if args.uncertainty == "mcmc" and not args.per_incidence:  # before any fit
+        check_model_walkers(args.model, args.walkers, data.sigma is not None)
     if args.model == "auto":  # chosen on the training incidences alone, as the fit sees them
         training = data.select(~data.incidence_mask(held_out(data, args)))
         args.model = choose_model(training, args.seed, predicting=bool(
@@ -226,13 +228,6 @@ def run_fit(args) -> None:
     if args.per_incidence:
         run_per_incidence(data, args)
         return
-    if args.uncertainty == "mcmc":  # before the fit, not after it
-        from brdfjax.models import get
-        from brdfjax.uncertainty.likelihood import coordinate_names
-        from brdfjax.uncertainty.mcmc import check_walkers
-
-        check_walkers(args.walkers, len(coordinate_names(get(args.model),
-                                                         data.sigma is not None)))
     result = fit(data, args.method, model=args.model, seed=args.seed, loss=args.loss,
                  validate_incidences_deg=held_out(data, args),
                  bounds=make_bounds(parse_bounds(args.bound), model=args.model))
@@ -251,6 +246,25 @@ def run_fit(args) -> None:
     if uncertainty is not None:
         print(uncertainty.table(fitted=result.vector, loss=result.loss))
     write_outputs(result, data, args, uncertainty, calibration, prediction)
+
+
+def check_model_walkers(model: str, walkers: int, sigma: bool) -> None:
+    """Refuse too few emcee ``walkers`` for ``model`` (``sigma``: the data give one), before
+    any work: with ``auto``, for the largest model it may choose, before the comparison."""
+    from brdfjax.models import get
+    from brdfjax.prediction.selection import DEFAULT_CANDIDATES
+    from brdfjax.uncertainty.likelihood import coordinate_names
+    from brdfjax.uncertainty.mcmc import check_walkers
+
+    sizes = {name: len(coordinate_names(get(name), sigma))
+             for name in (DEFAULT_CANDIDATES if model == "auto" else [model])}
+    largest = max(sizes, key=sizes.get)
+    try:
+        check_walkers(walkers, sizes[largest])
+    except ValueError as error:
+        if model != "auto":
+            raise
+        raise ValueError(f"--model auto may choose {largest}: {error}") from None
 
 
 def run_per_incidence(data, args) -> None:
