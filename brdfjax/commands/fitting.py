@@ -450,12 +450,10 @@ def rerun_command(args, model: str) -> str:
     from brdfjax.models import get
 
     names = get(model).names
-    argv = getattr(args, "argv", None) or ["fit", args.file, "--predict", args.predict,
-                                           "--predict-out", args.predict_out]
     edits = {"--model": lambda _: None,
              "--bound": lambda item: item if item.partition("=")[0].strip() in names else None,
              **dict.fromkeys(OUTPUT_OPTIONS, lambda path: renamed(path, model))}
-    return edited_command(argv, "fit", edits, append=["--model", model])
+    return edited_command(args.argv, "fit", edits, append=["--model", model])
 
 
 def renamed(path: str, model: str) -> str:

@@ -53,7 +53,7 @@ def run_models(args) -> None:
 
     def fit_command(name: str) -> str:
         """The user's file and options, as a fit that predicts with model ``name``."""
-        return edited_command(getattr(args, "argv", None) or ["models", args.file], "fit",
+        return edited_command(args.argv, "fit",
                               dict.fromkeys(("--models", "--json", "--plot"), lambda _: None),
                               append=["--model", name, "--predict", "GEOMETRY.csv",
                                       "--predict-out", "PRED.csv"])
