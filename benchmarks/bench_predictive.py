@@ -351,8 +351,9 @@ def bench_discrepancy(models, runs):
                        + " % (none / gp); the target reads per run in the table above."), ""]
         if model == "auto":
             ways = {"none": "by cv_error, for the model alone",
-                    "gp": ("by the cv_error of the model times its discrepancy, for the "
-                           "corrected prediction")}
+                    "gp": ("by the one-standard-error rule on the cv_error of the model "
+                           "times its discrepancy (`Comparison.predictor`), for the corrected "
+                           "prediction")}
             for kind, what in ways.items():
                 counts = ", ".join(f"{n} {models_used[kind].count(n)}"
                                    for n in sorted(set(models_used[kind])))

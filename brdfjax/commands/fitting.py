@@ -47,9 +47,10 @@ def register(subparsers) -> None:
                                           "Eq. (6).")
     p.add_argument("file", help=FILE_HELP)
     add_model_option(p, "the model to fit (auto: the lowest cv_error of brdfjax models; "
-                        "with --predict or --export and the learned discrepancy, the lowest "
-                        "cv_error of the model times its discrepancy, the model brdfjax "
-                        "models recommends for prediction)")
+                        "with --predict or --export and the learned discrepancy, the model "
+                        "brdfjax models recommends for prediction: of those whose cv_error "
+                        "times their discrepancy is within a standard error of the lowest, "
+                        "the lowest cv_error alone)")
     p.add_argument("--method", choices=("hybrid", "ga", "lm"), default="hybrid",
                    help="hybrid: genetic search then Levenberg-Marquardt (default)")
     p.add_argument("--seed", type=int, default=0, help=SEED_HELP)
@@ -335,14 +336,15 @@ def failure_reason() -> str:
 def choose_model(data, seed: int, predicting: bool = False) -> str:
     """``--model auto``, said aloud: the model with the lowest cv_error
     (`brdfjax.prediction.selection.Comparison.best`), or, ``predicting`` with the learned
-    discrepancy, the lowest cv_error of the model times its discrepancy
-    (`~brdfjax.prediction.selection.Comparison.predictor`, what ``brdfjax models``
-    recommends for prediction). On the 14 RT-300S runs (BENCHMARKS.md,
-    predictive-discrepancy) the latter's 95 % intervals are narrower (median half-width 21 %
-    against 27 %) and its 68 % intervals hold 68 % against 79 % (target 60-76 %), at the cost
-    of a lower 95 % coverage (91.0 % against 96.3 %) and a slightly higher median error
-    (5.0 % against 4.5 %). The model so chosen may fit poorly on its own (lambert on NiTE
-    on steel A) and predict well only with its correction."""
+    discrepancy, what ``brdfjax models`` recommends for prediction
+    (`~brdfjax.prediction.selection.Comparison.predictor`: of the models whose cv_error
+    times their discrepancy is within one standard error of the lowest, the lowest cv_error
+    alone). On the 14 RT-300S runs (BENCHMARKS.md, predictive-discrepancy) the latter's 95 %
+    intervals are narrower than those of the model chosen by cv_error alone and corrected
+    (median half-width 21 % against 27 %) and its 68 % intervals hold 69 % against 79 %
+    (target 60-76 %), at the cost of a lower 95 % coverage (91.1 % against 96.3 %) and a
+    slightly higher median error (4.8 % against 4.5 %). The model so chosen may fit poorly
+    on its own (lambert on NiTE on steel A) and predict well only with its correction."""
     from brdfjax.prediction.selection import compare_models
 
     comparison = compare_models(data, seed=seed, discrepancy="gp" if predicting else "none")
