@@ -453,14 +453,14 @@ def test_abg_per_incidence_writes_a_catalog_entry(tmp_path, capsys):
 
 
 def test_abg_out_needs_abg_per_incidence(tmp_path, capsys, monkeypatch):
-    """Refused before any work: with --model auto, before the models are compared (it
-    raised only after them, a minute later), and nothing is written."""
-    from brdfjax.prediction import selection
+    """Refused before any work, before the data are read: with --model auto it was
+    refused only after the models were compared, a minute later. Nothing is written."""
+    import brdfjax.data.formats
 
-    def compared(*args, **kwargs):
-        raise AssertionError("the models were compared before the refusal")
+    def no_work(*args, **kwargs):
+        raise AssertionError("the data were read before the refusal")
 
-    monkeypatch.setattr(selection, "compare_models", compared)
+    monkeypatch.setattr(brdfjax.data.formats, "load", no_work)
     for options in (["--model", "ggx", "--per-incidence"], ["--model", "abg"],
                     ["--model", "auto", "--predict", str(EC1), "--predict-out",
                      str(tmp_path / "p.csv")]):

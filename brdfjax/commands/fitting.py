@@ -49,8 +49,8 @@ def register(subparsers) -> None:
     add_model_option(p, "the model to fit (auto: the lowest cv_error of brdfjax models; "
                         "with --predict or --export and the learned discrepancy, the model "
                         "brdfjax models recommends for prediction: of those whose cv_error "
-                        "times their discrepancy is within a standard error of the lowest, "
-                        "the lowest cv_error alone)")
+                        "corrected by their discrepancy is within a standard error of the "
+                        "lowest, the lowest cv_error alone)")
     p.add_argument("--method", choices=("hybrid", "ga", "lm"), default="hybrid",
                    help="hybrid: genetic search then Levenberg-Marquardt (default)")
     p.add_argument("--seed", type=int, default=0, help=SEED_HELP)
@@ -74,7 +74,9 @@ def register(subparsers) -> None:
                    help="laplace: Gaussian at the optimum, milliseconds (default); mcmc: "
                         "emcee posterior samples, seconds; none: no intervals")
     p.add_argument("--walkers", type=positive_int, default=32,
-                   help="mcmc: ensemble size (default 32)")
+                   help="mcmc: ensemble size (default 32; at least twice the sampled "
+                        "coordinates, with --model auto those of the largest model it may "
+                        "choose, checked before any fit)")
     p.add_argument("--mcmc-steps", type=positive_int, default=20000,
                    help="mcmc: cap on the chain length; it stops earlier once longer than 50 "
                         "autocorrelation times (default 20000)")
@@ -338,8 +340,8 @@ def choose_model(data, seed: int, predicting: bool = False) -> str:
     (`brdfjax.prediction.selection.Comparison.best`), or, ``predicting`` with the learned
     discrepancy, what ``brdfjax models`` recommends for prediction
     (`~brdfjax.prediction.selection.Comparison.predictor`: of the models whose cv_error
-    times their discrepancy is within one standard error of the lowest, the lowest cv_error
-    alone). On the 14 RT-300S runs (BENCHMARKS.md, predictive-discrepancy) the latter's 95 %
+    corrected by their discrepancy is within one standard error of the lowest, the lowest
+    cv_error alone). On the 14 RT-300S runs (BENCHMARKS.md, predictive-discrepancy) the latter's 95 %
     intervals are narrower than those of the model chosen by cv_error alone and corrected
     (median half-width 21 % against 27 %) and its 68 % intervals hold 69 % against 79 %
     (target 60-76 %), at the cost of a lower 95 % coverage (91.1 % against 96.3 %) and a

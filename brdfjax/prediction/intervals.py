@@ -228,7 +228,7 @@ def cv_error_of(terms: tuple) -> float:
     return float(np.mean([fold.mean() for fold in terms])) if terms else float("nan")
 
 
-def compile_corrected_cv_errors(data: Measurements, validation, models: int) -> None:
+def compile_corrected_cv_terms(data: Measurements, validation, models: int) -> None:
     """Compile what `corrected_cv_terms` of ``models`` cross-validations of ``data`` folded
     as ``validation`` runs, without running it (no LAPACK call, so safe while other
     threads fit): ``brdfjax models`` so compiles it while the other models fit, instead of

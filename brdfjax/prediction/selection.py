@@ -106,17 +106,20 @@ class Comparison:
 
     @property
     def predictor(self) -> ModelScore:
-        """The model to predict with, by the one-standard-error rule: of the models whose
-        corrected cv_error exceeds the `lowest_corrected` by at most the standard error of
-        the difference (`paired_standard_error`), the first in `ranking`, the best model
-        alone (`best` where no discrepancy was scored).
+        """The model to predict with, by the one-standard-error rule. The candidates are
+        the models whose corrected cv_error exceeds the `lowest_corrected` by at most the
+        standard error of the difference (`paired_standard_error`); of them, the one that
+        comes first in `ranking`, by cv_error alone. Where no discrepancy was scored,
+        `best`.
 
         The corrected cv_errors of the models lie close together (each process takes up
         most of its model's shape error), and the lowest rests on the few dozen points of
         an interior fold or two: the rule keeps to the model that explains the data best
-        on its own unless another, corrected, predicts measurably better. Chosen over the
-        lowest corrected cv_error on four RT-300S runs (BENCHMARKS.md,
-        predictive-discrepancy)."""
+        on its own unless another, corrected, predicts measurably better. The points of a
+        fold share an incidence and are not independent, so the standard error is, if
+        anything, too small, and the rule leans towards the lowest. Chosen over the
+        lowest corrected cv_error on four RT-300S runs, prompted by a miss on another
+        (BENCHMARKS.md, predictive-discrepancy)."""
         lowest = self.lowest_corrected
         if lowest is None:
             return self.best
@@ -245,10 +248,11 @@ def choice_line(cv_errors: dict, what: str, label: str = "") -> str:
 def paired_standard_error(a: ModelScore, b: ModelScore) -> float:
     """The standard error of ``a.corrected_cv_error - b.corrected_cv_error``: on each
     interior fold the two models' terms are paired point by point (the same held-out
-    points), and the folds' mean differences averaged. NaN where a fold holds one point."""
-    variances = [np.var(x - y, ddof=1) / x.size if x.size > 1 else np.nan
-                 for x, y in zip(a.corrected_terms, b.corrected_terms)]
-    return float(np.sqrt(np.sum(variances)) / len(variances))
+    points), and the folds' mean differences averaged. Infinite where a fold holds one
+    point or none: there the difference cannot be measured."""
+    variances = [np.var(x - y, ddof=1) / x.size if x.size > 1 else np.inf
+                 for x, y in zip(a.corrected_terms, b.corrected_terms, strict=True)]
+    return float(np.sqrt(np.sum(variances)) / len(variances)) if variances else np.inf
 
 
 def information_criteria(result, data: Measurements) -> tuple[float, float]:
@@ -290,7 +294,7 @@ def compare_models(data: Measurements, models=None, *, seed: int = 0,
     from brdfjax.prediction.cross_validation import cross_validate
     from brdfjax.prediction.intervals import (
         check_discrepancy,
-        compile_corrected_cv_errors,
+        compile_corrected_cv_terms,
         corrected_cv_terms,
     )
 
@@ -314,7 +318,7 @@ def compare_models(data: Measurements, models=None, *, seed: int = 0,
         for job in as_completed(running):
             bar.update()
             if ahead and job.exception() is None:
-                compile_corrected_cv_errors(data, job.result().validation, len(names))
+                compile_corrected_cv_terms(data, job.result().validation, len(names))
                 ahead = False
         scores = [job.result() for job in running]
     if discrepancy == "gp":  # every model's processes in one call, in this thread
