@@ -171,7 +171,8 @@ def test_an_extreme_value_is_refused_before_the_fit_with_no_raw_warning(tmp_path
 @pytest.mark.parametrize("model", ["five", "auto"])
 def test_a_bad_predict_geometry_is_refused_before_any_fit(tmp_path, capsys, model):
     """--predict's file is read and checked with the inputs, before any fitting: nothing is
-    printed (no model choice, no fit summary) and the error names the file and its line."""
+    printed (no model choice, no fit summary) and the error names the option, the file and
+    its line (two files are read: the option says which one failed)."""
     geometry = tmp_path / "geometry.csv"
     geometry.write_text("theta_i,theta_r,phi_r\n10,20,0\n10,95,180\n")
     code = main(["fit", str(DATA / "synthetic" / "white_paint.csv"), "--model", model,
@@ -180,8 +181,13 @@ def test_a_bad_predict_geometry_is_refused_before_any_fit(tmp_path, capsys, mode
     assert code == 1
     captured = capsys.readouterr()
     assert captured.out == ""
-    assert captured.err.startswith(f"brdfjax fit: error: {geometry}:3: ")
+    assert captured.err.startswith(f"brdfjax fit: error: --predict {geometry}:3: ")
     assert not (tmp_path / "pred.csv").exists()
+    missing = tmp_path / "nosuch.csv"
+    assert main(["fit", str(DATA / "synthetic" / "white_paint.csv"), "--model", model,
+                 "--predict", str(missing), "--predict-out", str(tmp_path / "pred.csv")]) == 1
+    assert capsys.readouterr().err.startswith(
+        f"brdfjax fit: error: --predict {missing}: no such file")
 
 
 def test_mcmc_without_emcee_is_one_clear_error_before_the_fit(tmp_path, capsys, monkeypatch):

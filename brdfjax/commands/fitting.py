@@ -220,8 +220,12 @@ def run_fit(args) -> None:
     geometry = None
     if args.predict:  # read and checked like the output paths: before any fitting
         from brdfjax.data.formats import load_geometry
+        from brdfjax.data.measurements import DataError
 
-        geometry = load_geometry(args.predict, **reader_options(args))
+        try:
+            geometry = load_geometry(args.predict, **reader_options(args))
+        except DataError as error:  # which of the two files: the option says
+            raise DataError(f"--predict {error}") from None
     if args.uncertainty == "mcmc" and not args.per_incidence:  # before any fit
         check_model_walkers(args.model, args.walkers, data.sigma is not None)
     if args.model == "auto":  # chosen on the training incidences alone, as the fit sees them
