@@ -243,6 +243,14 @@ def test_fit_predict_writes_the_corrected_prediction_beside_the_model(tmp_path, 
         fitted = int(np.sum(np.abs(np.degrees(ggx_data.theta_i) - 40.0) > 1e-6))
         assert (f"({fitted} of the {len(ggx_data)} points were fitted: in-sample, not a "
                 "validation") in printed
+        # and the held-out incidence's points apart, as the CSV gives them
+        held = rows[kind][np.abs(rows[kind][:, 0] - 40.0) < 1e-6]
+        brdf, lo68, hi68, lo95, hi95, measured = held[:, [3, 5, 6, 7, 8, 9]].T
+        inside95 = 100 * np.mean((measured >= lo95) & (measured <= hi95))
+        inside68 = 100 * np.mean((measured >= lo68) & (measured <= hi68))
+        error = 100 * np.median(np.abs(brdf - measured) / np.abs(measured))
+        assert (f"on the {len(held)} others: 95 %: {inside95:.1f} %, 68 %: {inside68:.1f} %, "
+                f"median relative error {error:.3g} %)") in printed
     np.testing.assert_array_equal(rows["none"][:, 3], rows["none"][:, 4])  # brdf is the model
     np.testing.assert_array_equal(rows["gp"][:, 4], rows["none"][:, 4])  # the same fit
     assert not np.allclose(rows["gp"][:, 3], rows["gp"][:, 4], rtol=1e-4)

@@ -322,10 +322,10 @@ def run_per_incidence(data, args) -> None:
         write_atomically(args.json, json_text(payload))
 
 
-def fitted_points(geometry, training) -> int:
-    """How many points of ``geometry`` are at a geometry of the ``training`` data."""
+def fitted_points(geometry, training) -> np.ndarray:
+    """Which points of ``geometry`` are at a geometry of the ``training`` data (a mask)."""
     trained = set(map(tuple, training.geometries()))
-    return sum(key in trained for key in map(tuple, geometry.geometries()))
+    return np.array([key in trained for key in map(tuple, geometry.geometries())], bool)
 
 
 def failure_reason() -> str:
@@ -397,22 +397,29 @@ def validate_and_predict(result, data, args, geometry=None):
                 f"({what}); median 95 % half-width "
                 f"{100 * np.median(prediction.half_width()):.3g} % of the prediction")
         if prediction.measured is not None:
-            line += (f"; measured values inside the 95 % intervals: "
-                     f"{100 * prediction.coverage('95'):.1f} %, 68 %: "
-                     f"{100 * prediction.coverage('68'):.1f} %")
+            line += f"; measured values inside the intervals: {scores(prediction)}"
             fitted = fitted_points(geometry, result.training)
-            if fitted == len(geometry):
-                line += (f" (all {fitted} points were fitted: in-sample, not a validation; "
-                         "--validate-incidence DEG holds an incidence out)")
-            elif fitted:
-                line += (f" ({fitted} of the {len(geometry)} points were fitted: in-sample, "
-                         "not a validation)")
+            if fitted.all():
+                line += (f" (all {fitted.sum()} points were fitted: in-sample, not a "
+                         "validation; --validate-incidence DEG holds an incidence out)")
+            elif fitted.any():
+                line += (f" ({fitted.sum()} of the {len(geometry)} points were fitted: "
+                         f"in-sample, not a validation; on the {(~fitted).sum()} others: "
+                         f"{scores(prediction, ~fitted)})")
         print(line)
         for note in prediction.warnings:
             print(f"  warning: {note}")
         if result.model.name == "five":
             suggest_model(result, args, validation, calibration)
     return calibration, prediction
+
+
+def scores(prediction, where=None) -> str:
+    """How a prediction met its measured values (of the points ``where``, all if None): its
+    intervals' coverage and its median relative error, in words."""
+    return (f"95 %: {100 * prediction.coverage('95', where):.1f} %, 68 %: "
+            f"{100 * prediction.coverage('68', where):.1f} %, median relative error "
+            f"{100 * prediction.median_error(where):.3g} %")
 
 
 def calibrated(result, args):

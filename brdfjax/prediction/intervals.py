@@ -405,12 +405,22 @@ class Prediction:
     discrepancy: str = "none"
     warnings: list = field(default_factory=list)
 
-    def coverage(self, level: str = "95") -> float:
-        """The share of measured values inside the interval (NaN without measurements)."""
+    def coverage(self, level: str = "95", where=None) -> float:
+        """The share of measured values inside the interval (NaN without measurements), of
+        the points ``where`` (a mask; all if None)."""
         if self.measured is None:
             return float("nan")
         low, high = getattr(self, f"lo{level}"), getattr(self, f"hi{level}")
-        return float(np.mean((self.measured >= low) & (self.measured <= high)))
+        inside = (self.measured >= low) & (self.measured <= high)
+        return float(np.mean(inside if where is None else inside[where]))
+
+    def median_error(self, where=None) -> float:
+        """The median of |prediction - measured| / |measured| (NaN without measurements), of
+        the points ``where`` (a mask; all if None)."""
+        if self.measured is None:
+            return float("nan")
+        error = np.abs(self.brdf - self.measured) / np.abs(self.measured)
+        return float(np.median(error if where is None else error[where]))
 
     def half_width(self) -> np.ndarray:
         """The 95 % half-width relative to the prediction."""
