@@ -333,6 +333,11 @@ def test_models_command_ranks_by_cv_error(tmp_path, capsys):
     record = json.loads(out.read_text())
     assert record["ranking"] == ["five", "lambert"] and record["best"] == "five"
     assert record["predictor"] == "five"  # Comparison.predictor, the model to predict with
+    # what its one-standard-error rule compared: each model's standard error from the lowest
+    lowest = record["lowest_with_discrepancy"]
+    assert record["models"][lowest]["standard_error_from_lowest"] == 0
+    assert all(model["standard_error_from_lowest"] > 0 for name, model in
+               record["models"].items() if name != lowest)
     five = record["models"]["five"]
     assert set(five) >= {"params", "error", "cv_error", "cv_by_incidence", "aic", "bic",
                          "reflectance", "at_bounds"}
@@ -428,8 +433,11 @@ def test_the_model_to_predict_with_is_chosen_by_the_one_standard_error_rule():
     ggx = score("ggx", 0.01, [0.4, 0.0, 0.0, 0.4])
     comparison = Comparison([lambert, beckmann, ggx, rpv])
     assert comparison.lowest_corrected is beckmann and comparison.predictor is ggx
-    assert ("ggx with its learned discrepancy (cv_error 20 %, within one standard error of "
-            "the lowest, beckmann's 10 %; ") in comparison.recommendation()
+    assert ("ggx with its learned discrepancy (cv_error 20 %, within one standard error (12 "
+            "%) of the lowest, beckmann's 10 %, and of the models so close the lowest cv_error "
+            "alone; ") in comparison.recommendation()
+    assert comparison.standard_error(ggx) == pytest.approx(0.16**0.5 / 12**0.5)
+    assert comparison.standard_error(beckmann) == 0
     # a model without interior folds (no corrected cv_error) is never the predictor
     assert Comparison([score("five", 0.001), beckmann]).predictor is beckmann
     # none scored: the best model alone

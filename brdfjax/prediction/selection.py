@@ -125,8 +125,8 @@ class Comparison:
             return self.best
 
         def close(score: ModelScore) -> bool:  # within one standard error of the lowest
-            return score is lowest or (score.corrected_cv_error - lowest.corrected_cv_error
-                                       <= paired_standard_error(score, lowest))
+            return (score.corrected_cv_error - lowest.corrected_cv_error
+                    <= self.standard_error(score))
 
         candidates = {s.name: s for s in self.scores
                       if np.isfinite(s.corrected_cv_error) and close(s)}
@@ -158,8 +158,9 @@ class Comparison:
                            "GEOMETRY.csv --predict-out PRED.csv")
             lowest = self.lowest_corrected
             why = ("" if predictor is lowest else
-                   f", within one standard error of the lowest, {lowest.name}'s "
-                   f"{100 * lowest.corrected_cv_error:.3g} %")
+                   f", within one standard error ({100 * self.standard_error(predictor):.2g} "
+                   f"%) of the lowest, {lowest.name}'s {100 * lowest.corrected_cv_error:.3g} "
+                   "%, and of the models so close the lowest cv_error alone")
             line += (f"\nto predict unmeasured geometry: {predictor.name} with its learned "
                      f"discrepancy (cv_error {100 * predictor.corrected_cv_error:.3g} %{why}; "
                      f"{command(predictor.name)}); as a compact analytic model on its own: "
@@ -170,11 +171,22 @@ class Comparison:
         """For JSON: every model's scores, the ranking, ``best`` (the compact analytic model)
         and ``predictor`` (the model to predict with, None where no discrepancy was
         scored)."""
-        predictor = self.predictor
-        return {"models": {s.name: s.to_dict() for s in self.scores},
-                "ranking": self.ranking, "best": self.best.name,
+        predictor, lowest = self.predictor, self.lowest_corrected
+        models = {s.name: s.to_dict() for s in self.scores}
+        if lowest is not None:  # what the one-standard-error rule compared
+            for s in self.scores:
+                if np.isfinite(s.corrected_cv_error):
+                    models[s.name]["standard_error_from_lowest"] = self.standard_error(s)
+        return {"models": models, "ranking": self.ranking, "best": self.best.name,
                 "predictor": (predictor.name if np.isfinite(predictor.corrected_cv_error)
-                              else None)}
+                              else None),
+                "lowest_with_discrepancy": None if lowest is None else lowest.name}
+
+    def standard_error(self, score: ModelScore) -> float:
+        """The standard error of ``score``'s corrected cv_error minus the
+        `lowest_corrected` (`paired_standard_error`; 0 for the lowest itself)."""
+        lowest = self.lowest_corrected
+        return 0.0 if score is lowest else paired_standard_error(score, lowest)
 
     def table(self, command=None) -> str:
         """The ranked table a user reads (the ``+ discrepancy`` column where it was scored),
