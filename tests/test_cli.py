@@ -425,6 +425,29 @@ def test_bound_notes_explain_the_kb_b_trade_and_hint_only_where_widening_helps()
     # keyed by names: a model without b gets no degeneracy note
     other, = bound_notes(("kb", "roughness"), (1e-14, 0.3), {"kb": "lower"})
     assert "product" not in other
+    # a reflectance at 1, the end of its physical range: no wider bound is offered (it was,
+    # and the wider bound --bound f0=0:2 was taken); a narrower box's edge may be widened
+    names, limits = ("ks", "alpha", "f0", "kd"), {"f0": (0.0, 1.0)}
+    physical, = bound_notes(names, (2.0, 0.36, 1.0, 1e-8), {"f0": "upper"}, limits)
+    assert "end of its physical range (0 to 1)" in physical and "--bound" not in physical
+    narrow, = bound_notes(names, (2.0, 0.36, 0.5, 1e-8), {"f0": "upper"}, limits)
+    assert narrow.endswith("widen it with --bound f0=LO:HI (within its physical range, 0 to 1)")
+
+
+def test_a_bound_past_a_physical_limit_is_refused(capsys):
+    """f0, a reflectance, lies within 0 to 1: a --bound past it is refused before any work,
+    in every model that has it (a sum's second f0 too); inside it, taken."""
+    from brdfjax.fitting.bounds import make_bounds
+
+    for model, name in (("ggx", "f0"), ("beckmann", "f0"), ("ggx+ggx", "f0_2")):
+        with pytest.raises(ValueError, match=rf"bound of {name}: 0 to 2 leaves its physical "
+                                             r"range, 0 to 1 \(Schlick's normal-incidence "
+                                             r"reflectance\); give a range inside it"):
+            make_bounds({name: (0.0, 2.0)}, model=model)
+        bounds = make_bounds({name: (0.1, 0.5)}, model=model)
+        assert 0.5 in bounds.upper and 0.1 in bounds.lower
+    assert main(["fit", str(EC1), "--model", "ggx", "--bound", "f0=0:2"]) == 1
+    assert "leaves its physical range" in capsys.readouterr().err
 
 
 EC1 = DATA / "real" / "uaz-loft-rt300s" / "raw" / "ANOPLATE_AnoBlack_EC1_Alum6061_v1o0_20251115.xls"

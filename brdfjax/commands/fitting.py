@@ -783,8 +783,9 @@ def summary(result, name: str) -> str:
         unit = np.asarray(to_unit(result.vector, result.bounds))
         sides = {name: "lower" if unit[result.model.index(name)] < 0.5 else "upper"
                  for name in result.at_bounds}
+        limits = {p.name: p.limits for p in result.model.parameters if p.limits}
         lines += [f"  note: {text}" for text in
-                  bound_notes(result.model.names, result.params, sides)]
+                  bound_notes(result.model.names, result.params, sides, limits)]
     return "\n".join(lines)
 
 
@@ -793,13 +794,15 @@ def summary(result, name: str) -> str:
 SCALE_PARAMETERS = ("kb", "kd")
 
 
-def bound_notes(names, params, at_bounds: dict) -> list[str]:
+def bound_notes(names, params, at_bounds: dict, limits: dict | None = None) -> list[str]:
     """What a parameter at the edge of the search box means, and whether to widen the box.
 
     Args:
         names: the parameter names, in the order of ``params``.
         params: the fitted values.
         at_bounds: ``{name: "lower" or "upper"}`` for each parameter at an edge.
+        limits: ``{name: (low, high)}``, the physical range of the parameters that have one
+            (`brdfjax.models.base.Parameter.limits`): at it, no wider box exists.
 
     Returns:
         One sentence per parameter (or degenerate pair). The hint to widen with ``--bound``
@@ -810,7 +813,7 @@ def bound_notes(names, params, at_bounds: dict) -> list[str]:
         both along that valley without improving the fit (on the EC1 coating, kb from 1e-14
         to 1.1e-30 moved E from 1.704 % to 1.699 %; issue 15).
     """
-    values = dict(zip(names, params))
+    values, limits = dict(zip(names, params)), limits or {}
     notes = []
     for name, side in at_bounds.items():
         value = values[name]
@@ -823,9 +826,16 @@ def bound_notes(names, params, at_bounds: dict) -> list[str]:
         elif name in SCALE_PARAMETERS and side == "lower":
             notes.append(f"{name} = {value:.3g} at its lower bound: its term is negligible "
                          "for these data; widening the bound cannot lower E")
+        elif name in limits and np.isclose(value, limits[name][side == "upper"],
+                                           rtol=1e-6, atol=1e-6):
+            notes.append(f"{name} = {value:.3g} at its {side} bound, the end of its physical "
+                         f"range ({limits[name][0]:g} to {limits[name][1]:g}): the data ask "
+                         "for more than the model can give there; no wider bound exists")
         else:
+            within = (f" (within its physical range, {limits[name][0]:g} to "
+                      f"{limits[name][1]:g})" if name in limits else "")
             notes.append(f"{name} = {value:.3g} at its {side} bound: the best fit may lie "
-                         f"beyond it; widen it with --bound {name}=LO:HI")
+                         f"beyond it; widen it with --bound {name}=LO:HI{within}")
     return notes
 
 

@@ -44,6 +44,9 @@ class Parameter:
         scale: ``linear``, ``log10`` (positive parameters spanning decades) or ``asinh``
             (either sign, linear near zero and logarithmic beyond 1).
         reason: why this range (shown in the docs and ``brdfjax models --help``).
+        limits: the range the parameter can physically take, where it has one (a
+            reflectance: 0 to 1), or None: no ``--bound`` may pass it
+            (`brdfjax.fitting.bounds.make_bounds`), and a fit at it is not told to widen.
     """
 
     name: str
@@ -51,6 +54,7 @@ class Parameter:
     high: float
     scale: str
     reason: str
+    limits: tuple[float, float] | None = None
 
 
 def array_module(*values):

@@ -48,7 +48,8 @@ class Beckmann(SpecularMicrofacet):
         Parameter("ks", 1e-6, 1e3, "log10", "specular scale, from near-matte to mirror-like"),
         Parameter("alpha", 2e-3, 2.0, "log10",
                   "rms facet slope: 0.002 (a lobe of about 0.1 deg) to 2 (very rough)"),
-        Parameter("f0", 0.0, 1.0, "linear", "Schlick's normal-incidence reflectance"),
+        Parameter("f0", 0.0, 1.0, "linear", "Schlick's normal-incidence reflectance",
+                  limits=(0.0, 1.0)),
         Parameter("kd", 1e-8, 1e2, "log10", "diffuse level, down to black coatings"),
     )
 
