@@ -145,9 +145,9 @@ def held_out_error(values, data: Measurements, mask) -> float:
 
 def held_out_terms(values, data: Measurements, mask) -> np.ndarray:
     """The points' terms of `held_out_error` (which is their mean): each point's squared
-    error of the projected BRDF over the mean squared projected measurement. Two models' terms on the
-    same points, paired, give the standard error of the difference of their errors
-    (`brdfjax.prediction.selection.paired_standard_error`)."""
+    error of the projected BRDF over the mean squared projected measurement. Two models'
+    terms on the same points, paired, give the standard error of the difference of their
+    errors (`brdfjax.prediction.selection.paired_standard_error`)."""
     target, _ = targets(data)
     projected = np.asarray(values)[mask] * np.cos(data.theta_r[mask])
     measured = target[mask]
