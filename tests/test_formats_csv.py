@@ -89,25 +89,6 @@ def test_a_geometry_file_without_an_angle_names_what_it_needs(tmp_path):
         load(path)
 
 
-def test_angles_that_look_like_radians_are_warned_of(tmp_path):
-    """The format takes degrees: a file whose every angle would fit radians (theta at most
-    pi/2, phi at most 2 pi) reads as a few degrees from the normal, so it is warned of; one
-    angle past pi/2 deg, or all angles 0 (normal incidence and view), is not."""
-    path = tmp_path / "geometry.csv"
-    path.write_text("theta_i,theta_r,phi_r\n0.7,0.7,3.14\n0.5,0.2,0\n")
-    with pytest.warns(UserWarning, match=r"geometry.csv: every angle is at most pi/2 .* "
-                                         r"if these are radians, convert them"):
-        load_geometry(path)
-    import warnings
-
-    for text in ("theta_i,theta_r,phi_r\n0.7,1.6,3.14\n", "theta_i,theta_r,phi_r\n0,0,0\n",
-                 "theta_i,theta_r,phi_r\n0.7,0.7,7\n"):
-        path.write_text(text)
-        with warnings.catch_warnings():
-            warnings.simplefilter("error")
-            load_geometry(path)
-
-
 def test_load_geometry_of_a_file_with_values_keeps_them(white_paint):
     data = load_geometry(REPO / "data" / "synthetic" / "white_paint.csv")
     assert data.has_brdf

@@ -31,8 +31,6 @@ else the missing column is an error that says so.
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 
 from brdfjax.data.formats import read_text, spectral, split_lines
@@ -82,7 +80,6 @@ def read(path, wavelength_nm: float | None = None, geometry_only: bool = False) 
     if not rows:
         raise DataError("no measurements after the header", path)
     table = dict(zip(header, np.array(rows).T))
-    _warn_if_radians(table, path)
     metadata.setdefault("source", str(path))
     if wavelength_nm is not None:
         recorded = metadata.setdefault("wavelength_nm", f"{float(wavelength_nm):g}")
@@ -93,18 +90,6 @@ def read(path, wavelength_nm: float | None = None, geometry_only: bool = False) 
         table["theta_i"], table["theta_r"], table["phi_r"], brdf,
         sigma=table.get("sigma"), weights=table.get("weight"), metadata=metadata)
     return validate(data, path, np.array(lines), geometry_only="brdf" not in table)
-
-
-def _warn_if_radians(table: dict, path) -> None:
-    """Warn when every angle of a file would fit radians (theta at most pi/2, |phi| at most
-    2 pi, not all 0): the format takes degrees, and radians would read as a few degrees
-    from the normal. A warning, not an error: a scan within 1.57 deg of the normal in
-    degrees is possible, if rare."""
-    theta = np.abs(np.concatenate([table["theta_i"], table["theta_r"]]))
-    if 0 < theta.max() <= np.pi / 2 and np.abs(table["phi_r"]).max() <= 2 * np.pi:
-        warnings.warn(f"{path}: every angle is at most pi/2 (theta) and 2 pi (phi): this "
-                      "format takes degrees; if these are radians, convert them with "
-                      "numpy.degrees", stacklevel=3)
 
 
 def write(data: Measurements, path) -> None:
