@@ -71,13 +71,13 @@ def make_bounds(ranges: dict, scales: dict | None = None, model=None) -> Bounds:
     bad_scale = {k: v for k, v in scales.items() if v not in SCALES}
     if bad_scale:
         raise ValueError(f"unknown scale(s) {bad_scale}; scales: {tuple(SCALES)}")
+    base = {**{p.name: (p.low, p.high) for p in model.parameters}, **ranges}
     for p in model.parameters:
-        low, high = ranges.get(p.name, (p.low, p.high))
+        low, high = base[p.name]
         if p.limits is not None and (low < p.limits[0] or high > p.limits[1]):
             raise ValueError(f"bound of {p.name}: {low:g} to {high:g} leaves its physical "
                              f"range, {p.limits[0]:g} to {p.limits[1]:g} ({p.reason}); give "
                              "a range inside it")
-    base = {**{p.name: (p.low, p.high) for p in model.parameters}, **ranges}
     lower = np.array([base[k][0] for k in names], dtype=float)
     upper = np.array([base[k][1] for k in names], dtype=float)
     scale = np.array([SCALES[scales[k]] for k in names])
