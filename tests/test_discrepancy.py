@@ -214,3 +214,31 @@ def test_conformal_factor_covers_exchangeable_scores(size):
     expected = math.ceil((size + 1) * level) / (size + 1)
     standard_error = math.sqrt(expected * (1 - expected) / trials)
     assert abs(np.mean(inside) - expected) < 4 * standard_error
+
+
+def test_models_on_a_sphere_scatterometer_grid_of_13_incidences_finishes(tmp_path, environment):
+    """``brdfjax models`` on 13 incidences fits 110 processes of 256 points (10 models x 11
+    interior folds). Fitted side by side, jaxlib's batched triangular solves split their
+    batch over XLA's two intra-op threads and both waited for the parts, for ever (a hang on
+    every run of the code before). Run as a user runs it, in a process under a timeout."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from brdfjax.models.paper import PAPER_SAMPLES, brdf
+
+    rows = [(incidence, zenith, azimuth) for incidence in range(15, 76, 5)
+            for zenith, azimuth in [(0, 0)] + [(z, a) for z in range(12, 85, 12)
+                                                for a in range(0, 181, 30)]]
+    angles = np.array(rows, float)
+    values = np.array(brdf(PAPER_SAMPLES["white_paint"], *np.radians(angles.T)))
+    values *= 1 + 0.03 * np.random.default_rng(0).standard_normal(values.size)
+    path = tmp_path / "grid13.csv"
+    np.savetxt(path, np.column_stack([angles, values]), delimiter=",", fmt="%.8g",
+               header="theta_i,theta_r,phi_r,brdf", comments="")
+    cli = Path(sys.executable).parent / "brdfjax"
+    done = subprocess.run([str(cli), "models", str(path)], check=False, env=environment,
+                          capture_output=True, text=True, timeout=500)
+    assert done.returncode == 0, done.stderr
+    assert "650 points" in done.stdout and "11 interior folds" in done.stdout
+    assert "recommended: five" in done.stdout  # the model that made the data

@@ -265,15 +265,29 @@ def _covariance(u, x):
 def _fit_hyperparameters(x, r, count, candidates):
     """Maximum marginal likelihood of each padded training set ``(x (B, M, D), r (B, M),
     count (B,))``: the best of the ``candidates (B, C, K)`` (scored without gradients), then
-    BFGS from it. Returns ``(u (B, K), log L (B,), BFGS steps (B,))``."""
+    BFGS from it. Returns ``(u (B, K), log L (B,), BFGS steps (B,))``.
+
+    The sets, and a set's candidates, go one after another (``lax.map``), not side by side
+    (``vmap``): a batched Cholesky factorisation or triangular solve of jaxlib 0.10 splits
+    its batch over XLA's intra-op threads and waits for the parts, on one of those threads;
+    when every such thread waits so at once (two independent solves on a 2-core machine),
+    none is left to run the parts and the process hangs for ever (13 incidences, 110
+    processes of 256 points: ``brdfjax models`` hung so). One matrix at a time is solved in
+    the thread that asks, and the hang cannot happen. It also keeps a process's cost to its
+    own BFGS steps, where side by side every lane ran as many as the slowest, and it frees
+    the second core instead of waking it for each solve (a 20x slowdown when another job
+    held the cores).
+    """
     import optimistix as optx
 
-    def one(x, r, count, candidates):
+    def one(arguments):
+        x, r, count, candidates = arguments
+
         def loss(u, _):
             value = -_log_likelihood(u, x, r, count) / count
             return jnp.where(jnp.isfinite(value), value, 1e10)
 
-        scores = jax.vmap(loss, in_axes=(0, None))(candidates, None)
+        scores = jax.lax.map(lambda u: loss(u, None), candidates)
         start = candidates[jnp.argmin(scores)]
         solution = optx.minimise(loss, optx.BFGS(rtol=RTOL, atol=RTOL), start,
                                  max_steps=MAX_STEPS, throw=False)
@@ -281,7 +295,7 @@ def _fit_hyperparameters(x, r, count, candidates):
         u = jnp.where(better, solution.value, start)
         return u, _log_likelihood(u, x, r, count), solution.stats["num_steps"]
 
-    return jax.vmap(one)(x, r, count, candidates)
+    return jax.lax.map(one, (x, r, count, candidates))
 
 
 @stage
