@@ -17,6 +17,26 @@ DATA = REPO / "data"
 SHARED = REPO.parent / "shared"
 
 
+def _real_data() -> Path:
+    """The folder of the real data sets (`brdfjax.datasets`): ``BRDFJAX_DATA`` where it is
+    set, else the project's shared copy where it exists (as in CI), else the sets downloaded
+    into the user's cache. Every file of every set is checked to be there, so that a missing
+    one fails the run here instead of a test skipping."""
+    from brdfjax import datasets
+
+    shared = SHARED / "data" / "real"
+    if not os.environ.get(datasets.ENVIRONMENT) and shared.is_dir():
+        os.environ[datasets.ENVIRONMENT] = str(shared)
+    return {datasets.fetch(name, progress=True).parent for name in datasets.names()}.pop()
+
+
+# The real measurements, laid out as <set>/<folder>/<file>.
+REAL = _real_data()
+# The in-plane CSVs made outside this project from the raw files, to check the readers
+# against: the project's shared data folder has them, its sources do not.
+DERIVED = SHARED / "data" / "real"
+
+
 @pytest.fixture(scope="session")
 def white_paint():
     """The bundled synthetic white-paint measurements."""

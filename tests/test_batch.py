@@ -16,7 +16,7 @@ from pathlib import Path
 import jax
 import numpy as np
 import pytest
-from conftest import DATA
+from conftest import REAL
 
 from brdfjax.commands.batch import expand
 from brdfjax.data.formats import load, save
@@ -30,7 +30,7 @@ from brdfjax.models.paper import PAPER_SAMPLES
 
 SMALL = {"population_size": 64, "max_generations": 15, "starts": 8, "max_steps": 40}
 CLI_SMALL = [f"--{k.replace('_', '-')}={v}" for k, v in SMALL.items()] + ["--chunk-size=2"]
-RAW = DATA / "real" / "uaz-loft-rt300s" / "raw"
+RAW = REAL / "uaz-loft-rt300s" / "raw"
 CATALOGUE_SIZE = 16  # good files; with chunks of 2, eight writes to interrupt between
 
 
@@ -507,7 +507,7 @@ def test_a_spectral_file_fixed_after_a_failed_read_replaces_its_failed_row(tmp_p
     wavelengths are its rows and the failed one is gone (it stayed, among 'any others')."""
     from brdfjax.cli import main
 
-    source = DATA / "real" / "nist-germer-ptfe" / "PTFE.data.csv"
+    source = REAL / "nist-germer-ptfe" / "PTFE.data.csv"
     path = tmp_path / "PTFE.data.csv"
     path.write_text(source.read_text().replace("f_r11,", "f_r_11,", 1))  # a column missing
     out = tmp_path / "results.csv"
@@ -554,7 +554,7 @@ def test_every_wavelength_is_a_sample_with_its_own_row(tmp_path, capsys):
     from brdfjax.cli import main
     from brdfjax.data.formats import load_spectral
 
-    source = DATA / "real" / "nist-germer-ptfe" / "PTFE.data.csv"
+    source = REAL / "nist-germer-ptfe" / "PTFE.data.csv"
     out, plot = tmp_path / "results.csv", tmp_path / "spectral.png"
     command = ["batch", str(source), "--wavelength", "351,1064", "--model", "lambert",
                "--out", str(out), "--plot", str(plot), *CLI_SMALL]

@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 import pytest
 import transcription
-from conftest import DATA
+from conftest import DATA, REAL
 
 from brdfjax.cli import build_parser, main
 from brdfjax.models.paper import PAPER_SAMPLES, brdf
@@ -95,7 +95,7 @@ def test_train_incidence_holds_out_the_rest(tmp_path, capsys):
 
 def test_convert_and_info(tmp_path, capsys):
     target = tmp_path / "steel.csv"
-    source = str(DATA / "real/uaz-loft-rt300s/raw/NiTE_on_steel_v1o0A_20250915.xls")
+    source = str(REAL / "uaz-loft-rt300s/raw/NiTE_on_steel_v1o0A_20250915.xls")
     assert main(["convert", source, str(target)]) == 0
     assert main(["info", str(target)]) == 0
     out = capsys.readouterr().out
@@ -450,7 +450,7 @@ def test_a_bound_past_a_physical_limit_is_refused(capsys):
     assert "leaves its physical range" in capsys.readouterr().err
 
 
-EC1 = DATA / "real" / "uaz-loft-rt300s" / "raw" / "ANOPLATE_AnoBlack_EC1_Alum6061_v1o0_20251115.xls"
+EC1 = REAL / "uaz-loft-rt300s" / "raw" / "ANOPLATE_AnoBlack_EC1_Alum6061_v1o0_20251115.xls"
 
 
 def test_a_sum_fits_with_its_parameter_names_and_intervals(tmp_path, capsys):

@@ -1,7 +1,7 @@
 """The careful SciPy peer of the benchmarks: the same problem, an independent optimiser."""
 
 import pytest
-from conftest import DATA
+from conftest import REAL
 
 from brdfjax.compare import compare, format_table, nonlinear_parameters
 from brdfjax.data.formats import load
@@ -19,7 +19,7 @@ def test_the_searched_parameters_are_those_the_linear_solve_leaves_alone(name, s
 def test_scipy_reaches_brdfjax_s_error_on_a_real_run():
     """SciPy's DE over the nonlinear parameters plus least_squares, from its own seed,
     ends at brdfjax's E (to 1e-6 relative) for the GGX fit of a real NiTE run."""
-    data = load(DATA / "real" / "uaz-loft-rt300s" / "raw" / "NiTE_on_invar_v1o0A_20250915.xls")
+    data = load(REAL / "uaz-loft-rt300s" / "raw" / "NiTE_on_invar_v1o0A_20250915.xls")
     runs = {run.method: run for run in compare(data, repeats=1, include=("hybrid", "scipy-vp"),
                                                model="ggx")}
     assert runs["scipy vp"].error == pytest.approx(runs["brdfjax hybrid"].error, rel=1e-6)

@@ -1,15 +1,14 @@
 """ASTM E1392: hand-written files, conventions, spectral columns, round trips, model export."""
 
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import REAL
 
 from brdfjax.data.formats import astm, load, load_spectral, save, zemax
 from brdfjax.data.measurements import DataError
 
-REPO = Path(__file__).resolve().parents[1]
-AUTHORS_BSDF = REPO / "data" / "real" / "uaz-loft-rt300s" / "processed_by_authors"
+AUTHORS_BSDF = REAL / "uaz-loft-rt300s" / "processed_by_authors"
 PI = np.pi
 
 
@@ -74,7 +73,7 @@ def test_spectral_columns(tmp_path):
 
 
 def test_spectral_nist_file_has_four_wavelengths():
-    every = load_spectral(REPO / "data" / "real" / "nist-germer-ptfe" / "PTFE.data.csv")
+    every = load_spectral(REAL / "nist-germer-ptfe" / "PTFE.data.csv")
     assert list(every) == [351.0, 532.0, 633.0, 1064.0]
     assert all(len(d) == 1824 for d in every.values())
     assert every[633.0].metadata["wavelength_nm"] == 633.0

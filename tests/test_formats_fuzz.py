@@ -14,14 +14,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import REAL
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from brdfjax.data.formats import load, load_geometry
 from brdfjax.data.measurements import DataError, Measurements, validate
 
-REPO = Path(__file__).resolve().parents[1]
-UAZ = REPO / "data" / "real" / "uaz-loft-rt300s"
+UAZ = REAL / "uaz-loft-rt300s"
 SETTINGS = settings(max_examples=60, deadline=5000, derandomize=True,
                     suppress_health_check=[HealthCheck.too_slow])
 
@@ -221,11 +221,10 @@ def test_a_batch_is_checked_as_each_sample_alone(specs):
 
 
 def real_files():
-    for root in (REPO / "data" / "real", REPO.parent / "shared" / "data" / "real"):
-        for path in sorted(root.rglob("*")):
-            if path.suffix in (".xls", ".bsdf", ".csv") and "blank" not in path.name \
-                    and "derived" not in path.parts:
-                yield path
+    for path in sorted(REAL.rglob("*")):
+        if path.suffix in (".xls", ".bsdf", ".csv") and "blank" not in path.name \
+                and "derived" not in path.parts:
+            yield path
 
 
 @pytest.mark.parametrize("path", list(real_files()), ids=lambda p: p.name)

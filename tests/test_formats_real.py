@@ -13,17 +13,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import DERIVED, REAL
 
 from brdfjax.data.formats import load, nist, rt300s, save, zemax
 from brdfjax.data.measurements import DataError, Measurements
 
-REPO = Path(__file__).resolve().parents[1]
-DATA = REPO / "data" / "real"
-UAZ = DATA / "uaz-loft-rt300s"
-PTFE = DATA / "nist-germer-ptfe" / "PTFE.data.csv"
-UAZ_DERIVED = UAZ / "derived" / "inplane_brdf.csv"
-PTFE_DERIVED = DATA / "nist-germer-ptfe" / "derived" / "PTFE_inplane.csv"
-PTFE_RANDOM = DATA / "nist-germer-ptfe" / "PTFE.data.random.csv"
+UAZ = REAL / "uaz-loft-rt300s"
+PTFE = REAL / "nist-germer-ptfe" / "PTFE.data.csv"
+UAZ_DERIVED = DERIVED / "uaz-loft-rt300s" / "derived" / "inplane_brdf.csv"
+PTFE_DERIVED = DERIVED / "nist-germer-ptfe" / "derived" / "PTFE_inplane.csv"
+PTFE_RANDOM = REAL / "nist-germer-ptfe" / "PTFE.data.random.csv"
 
 # Which .bsdf of the authors holds which material of the derived CSV.
 BSDF_MATERIALS = {"AnoBlackEC1onAlum": "AnoBlack_EC1_on_Al6061",

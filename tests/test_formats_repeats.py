@@ -1,16 +1,15 @@
 """Repeated geometry is data: every reading kept, summarised by ``info``; incidence bins."""
 
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import REAL
 
 from brdfjax.cli import main
 from brdfjax.data.formats import load, nist, save, zemax
 from brdfjax.data.measurements import Measurements, repeat_summary
 
-REPO = Path(__file__).resolve().parents[1]
-PTFE_RANDOM = REPO / "data" / "real" / "nist-germer-ptfe" / "PTFE.data.random.csv"
+PTFE_RANDOM = REAL / "nist-germer-ptfe" / "PTFE.data.random.csv"
 
 
 def grid_csv(path, incidences=(5, 30)):

@@ -14,9 +14,9 @@ import sys
 import time
 
 import pytest
-from conftest import DATA, REPO
+from conftest import REAL, REPO
 
-RT300S = DATA / "real" / "uaz-loft-rt300s"
+RT300S = REAL / "uaz-loft-rt300s"
 SMALL = ["--population-size=64", "--max-generations=15", "--starts=8", "--max-steps=40"]
 
 

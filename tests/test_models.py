@@ -280,11 +280,11 @@ def test_float32_search_scores_as_float64_on_a_black_coating(name):
     columns scaled by their largest magnitude among every 8th point only overflowed on
     Beckmann's and Torrance-Sparrow's narrow lobes, in float64 too (53 and 56 of 2000
     members)."""
-    from conftest import DATA
+    from conftest import REAL
 
     model = get(name)
     bounds = default_bounds(model)
-    prob = problem(brdfjax.load(DATA / "real" / "uaz-loft-rt300s" / "raw" /
+    prob = problem(brdfjax.load(REAL / "uaz-loft-rt300s" / "raw" /
                                 "ANOPLATE_AnoBlack_EC1_Alum6061_v1o0_20251115.xls"), model)
     z = np.random.default_rng(0).uniform(size=(200, model.size))
     wide, fitting, gap = scored_in_both_precisions(z, prob, bounds)

@@ -4,12 +4,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import REAL
 
 from brdfjax.data.formats import load
 from brdfjax.plot import plot_hemisphere, plot_polar_maps, plot_spectral
 
 REPO = Path(__file__).resolve().parents[1]
-PTFE = REPO / "data" / "real" / "nist-germer-ptfe"
+PTFE = REAL / "nist-germer-ptfe"
 
 
 def is_png(path) -> bool:

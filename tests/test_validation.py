@@ -8,7 +8,7 @@ import shlex
 import numpy as np
 import pytest
 import transcription
-from conftest import DATA
+from conftest import DATA, REAL
 
 from brdfjax.cli import main
 from brdfjax.data.formats import load
@@ -316,7 +316,7 @@ def test_a_suggested_command_is_the_users_with_the_model_swapped():
 
 
 def test_scattered_incidences_are_binned():
-    data = load(DATA / "real" / "nist-germer-ptfe" / "PTFE.data.random.csv", wavelength_nm=532)
+    data = load(REAL / "nist-germer-ptfe" / "PTFE.data.random.csv", wavelength_nm=532)
     groups = incidence_groups(data)
     assert 3 <= len(groups) <= 8
     masks = np.stack([g[3] for g in groups])
@@ -527,7 +527,7 @@ def test_model_auto_predicts_with_the_model_to_predict_with(monkeypatch, capsys)
         return comparison
 
     monkeypatch.setattr(selection, "compare_models", two_candidates)
-    data = load(DATA / "real" / "uaz-loft-rt300s" / "raw" / "NiTE_on_steel_v1o0A_20250915.xls")
+    data = load(REAL / "uaz-loft-rt300s" / "raw" / "NiTE_on_steel_v1o0A_20250915.xls")
     assert choose_model(data, 0) == "ggx" and seen == ["none"]
     assert "predicting with" not in capsys.readouterr().out
     assert choose_model(data, 0, predicting=True) == "lambert" and seen[-1] == "gp"
