@@ -51,7 +51,8 @@ from brdfjax.fitting.objective import problem
 from brdfjax.models.paper import PAPER_SAMPLES
 
 TRAIN = [10, 30, 45, 60]
-REAL = sorted((REPO / "data" / "real" / "uaz-loft-rt300s").glob("raw*/*.xls"))
+RT300S = report.real_data("uaz-loft-rt300s")
+REAL = sorted([*RT300S.glob("raw/*.xls"), *RT300S.glob("raw_legacy_1deg/*.xls")])
 REAL = [p for p in REAL if not p.name.startswith("blank")]
 
 
@@ -220,7 +221,7 @@ def bench_compare(repeats):
     import matplotlib.pyplot as plt
 
     sets = {"white paint (synthetic, 716 pts)": white_paint_train(),
-            "NiTE on steel A (real)": load(REPO / "data/real/uaz-loft-rt300s/raw/"
+            "NiTE on steel A (real)": load(RT300S / "raw" /
                                             "NiTE_on_steel_v1o0A_20250915.xls")}
     text, fig = [], plt.figure(figsize=(11, 4.5))
     for k, (label, data) in enumerate(sets.items()):

@@ -40,12 +40,20 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from benchmarks import report
-from benchmarks.report import commit_of, load_average, time_commands, worker_json, write_section
+from benchmarks.report import (
+    commit_of,
+    load_average,
+    real_data,
+    time_commands,
+    worker_json,
+    write_section,
+)
 
 TRAIN = [10, 30, 45, 60]
-RT300S = REPO / "data" / "real" / "uaz-loft-rt300s"
-REAL = [p for p in sorted(RT300S.glob("raw*/*.xls")) if not p.name.startswith("blank")]
-NIST = REPO / "data" / "real" / "nist-germer-ptfe" / "PTFE.data.csv"
+RT300S = real_data("uaz-loft-rt300s")
+REAL = [p for p in sorted([*RT300S.glob("raw/*.xls"), *RT300S.glob("raw_legacy_1deg/*.xls")])
+        if not p.name.startswith("blank")]
+NIST = real_data("nist-germer-ptfe") / "PTFE.data.csv"
 SPEED_RUN = RT300S / "raw" / "NiTE_on_steel_v1o0A_20250915.xls"  # 120 points
 # Each model's synthetic truth: interior points of its box, near its fit to real data
 # (the paper's white paint for Eq. 5; NiTE on steel A for the others, kd and rho0 moved

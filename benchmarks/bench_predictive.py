@@ -44,11 +44,11 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from benchmarks import report
-from benchmarks.report import load_average, time_commands, write_section
+from benchmarks.report import load_average, real_data, time_commands, write_section
 
-NIST = REPO / "data" / "real" / "nist-germer-ptfe" / "PTFE.data.csv"
-RUNS = sorted((REPO / "data" / "real" / "uaz-loft-rt300s" / "raw").glob("*_v1o0*.xls")) + sorted(
-    (REPO / "data" / "real" / "uaz-loft-rt300s" / "raw_legacy_1deg").glob("0*.xls"))
+NIST = real_data("nist-germer-ptfe") / "PTFE.data.csv"
+RUNS = sorted((real_data("uaz-loft-rt300s") / "raw").glob("*_v1o0*.xls")) + sorted(
+    (real_data("uaz-loft-rt300s") / "raw_legacy_1deg").glob("0*.xls"))
 
 
 def fit_without(data, incidence, model):

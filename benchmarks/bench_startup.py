@@ -28,9 +28,9 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from benchmarks.report import child_env, commit_of, write_section
+from benchmarks.report import child_env, commit_of, real_data, write_section
 
-RAW = REPO / "data" / "real" / "uaz-loft-rt300s" / "raw"
+RAW = real_data("uaz-loft-rt300s") / "raw"
 TARGETS = {"fit": 8.0, "models": 30.0, "batch auto": 60.0}
 
 

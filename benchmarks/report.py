@@ -26,6 +26,17 @@ with `make bench`.
 """
 
 
+def real_data(name: str) -> Path:
+    """The folder of real data set ``name`` (`brdfjax.datasets`): from ``BRDFJAX_DATA``,
+    else from the project's shared copy where it exists (as in CI), else downloaded."""
+    from brdfjax import datasets
+
+    shared = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
+    if not os.environ.get(datasets.ENVIRONMENT) and shared.is_dir():
+        os.environ[datasets.ENVIRONMENT] = str(shared)
+    return datasets.fetch(name, progress=True)
+
+
 # XLA_FLAGS as the benchmark was started with: `import brdfjax` adds its own flags to this
 # process's environment, and a child process running another checkout (``--before``,
 # ``--baseline``) must get that checkout's own, not these. Right only where this module is
