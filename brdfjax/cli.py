@@ -25,6 +25,7 @@ COMMAND_MODULES = (
     "brdfjax.commands.fitting",
     "brdfjax.commands.models",
     "brdfjax.commands.data",
+    "brdfjax.commands.datasets",
     "brdfjax.commands.batch",
     "brdfjax.commands.instrument",
 )

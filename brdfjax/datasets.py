@@ -72,7 +72,7 @@ def names() -> list[str]:
 
 def files(name: str) -> list[str]:
     """The files of set ``name``, as paths relative to its folder."""
-    _check_name(name)
+    check_name(name)
     return [path.split("/", 1)[1] for path in _registry() if path.startswith(f"{name}/")]
 
 
@@ -88,22 +88,22 @@ def fetch(name: str, *, progress: bool = False) -> Path:
         ValueError: an unknown name (the message lists the names), a file missing from
             ``BRDFJAX_DATA``, a failed download or a hash mismatch.
     """
-    _check_name(name)
-    local = os.environ.get(ENVIRONMENT)
+    check_name(name)
+    local = local_folder()
     if local:
-        folder = Path(local).expanduser() / name
+        folder = local / name
         missing = [f for f in files(name) if not (folder / f).is_file()]
         if missing:
-            raise ValueError(f"{ENVIRONMENT}={local}: {folder} has no {missing[0]}"
+            raise ValueError(f"{ENVIRONMENT}={os.environ[ENVIRONMENT]}: {folder} has no {missing[0]}"
                              + (f" (and {len(missing) - 1} more files)" if len(missing) > 1
                                 else "")
                              + f"; point {ENVIRONMENT} at a folder holding the set '{name}', "
                                "or unset it to download the set")
         return folder
-    store = _pooch(progress)
+    store = _pooch()
     for path in _registry():
         if path.startswith(f"{name}/"):
-            _download(store, path)
+            _download(store, path, progress)
     return Path(store.path) / name
 
 
@@ -117,6 +117,19 @@ def path(name: str, file: str | None = None) -> Path:
     return folder / file
 
 
+def local_folder() -> Path | None:
+    """The folder ``BRDFJAX_DATA`` names, if it is set."""
+    local = os.environ.get(ENVIRONMENT)
+    return Path(local).expanduser() if local else None
+
+
+def is_present(name: str) -> bool:
+    """Whether every file of set ``name`` is already here (no download needed), hashes
+    not checked."""
+    folder = (local_folder() or cache_folder()) / name
+    return all((folder / f).is_file() for f in files(name))
+
+
 def cache_folder() -> Path:
     """Where downloaded sets are kept (the user's cache folder)."""
     import pooch
@@ -124,7 +137,8 @@ def cache_folder() -> Path:
     return Path(pooch.os_cache("brdfjax"))
 
 
-def _check_name(name: str) -> None:
+def check_name(name: str) -> None:
+    """Refuse a name that is not a set's, listing the sets."""
     if name not in SETS:
         raise ValueError(f"no data set named {name!r}; the sets are: {', '.join(SETS)}")
 
@@ -139,19 +153,19 @@ def _registry() -> dict[str, tuple[str, str]]:
     return entries
 
 
-def _pooch(progress: bool):
+def _pooch():
     import pooch
 
     registry = _registry()
-    return pooch.create(path=cache_folder(), base_url="", progressbar=progress,
+    return pooch.create(path=cache_folder(), base_url="",
                         registry={p: digest for p, (digest, _) in registry.items()},
                         urls={p: url for p, (_, url) in registry.items()}, retry_if_failed=2)
 
 
-def _download(store, path: str) -> None:
+def _download(store, path: str, progress: bool) -> None:
     url = store.get_url(path)
     try:
-        store.fetch(path)
+        store.fetch(path, progressbar=progress)
     except ValueError as error:  # pooch: the hash of the download does not match
         raise ValueError(f"{path}: the file downloaded from {url} is not the one recorded "
                          f"({error}); it was not kept: run the command again to retry, or "

@@ -1,9 +1,9 @@
-"""The readers of real instrument files, checked against the shipped data and its derived CSVs.
+"""The readers of real instrument files, checked against the data and its derived CSVs.
 
-The shipped files live in ``data/real``, and so do the derived in-plane CSVs the readers are
-checked against (made outside this project from the same raw files, with the OPPOSITE azimuth
-convention: there ``phi_r = 0`` and ``theta_r_signed > 0`` are the specular side), so every
-test here runs on any clone.
+The files come from `brdfjax.datasets` (``conftest.REAL``). The derived in-plane CSVs the
+readers are checked against (made outside this project from the same raw files, with the
+OPPOSITE azimuth convention: there ``phi_r = 0`` and ``theta_r_signed > 0`` are the specular
+side) come from the project's shared data folder (``conftest.DERIVED``), as in CI.
 """
 
 import csv

@@ -30,7 +30,7 @@ class DataError(ValueError):
 # A measured BRDF may dip below zero by noise (blank subtraction), not by much more.
 NEGATIVE_TOLERANCE = 0.05
 # A brdf value more than 10**OUTLIER_DECADES times the median |brdf| of its file is an
-# outlier. The real files shipped (data/real, ../shared/data/real) peak at most 150 times
+# outlier. The real files of `brdfjax.datasets` peak at most 150 times
 # their median (NiTE black on steel, specular at 70 deg); a specular peak of a glossy sample over
 # its diffuse floor reaches 1e4-1e6 on instruments with apertures of 1e-4 to 1e-3 sr
 # (f_r <= 1 / (aperture cos theta_r)). Eight decades leave that margin, and still catch
