@@ -402,7 +402,7 @@ def write(data: Measurements, path) -> None:
     if merged:
         comments.append(f"repeats_averaged: {merged} repeated readings averaged into their "
                         "table cells")
-    _write_table(path, "Measured", incidences, azimuths, radials, table, comments)
+    _write_table(path, incidences, azimuths, radials, table, comments)
 
 
 def is_grid_step(step: float) -> bool:
@@ -463,7 +463,7 @@ def write_model(path, params, incidences_deg, azimuths_deg=tuple(range(0, 181, 1
                 parameter_comment(params, model)]
     if wavelength_nm is not None:
         comments.append(f"wavelength_nm: {wavelength_nm:g}")
-    return _write_table(path, "Model", incidences, azimuths, radials, table, comments)
+    return _write_table(path, incidences, azimuths, radials, table, comments)
 
 
 def model_table(params, incidences_deg, azimuths_deg, radial_deg, model=None,
@@ -552,8 +552,14 @@ def tis(table, incidence_deg, azimuths_deg, radial_deg) -> float:
     return float(np.trapezoid(over_radial, azimuths))
 
 
-def _write_table(path, source, incidences, azimuths, radials, table, comments) -> None:
-    """Format and write a Monochrome BRDF table, one block per angle of incidence."""
+def _write_table(path, incidences, azimuths, radials, table, comments) -> None:
+    """Format and write a Monochrome BRDF table, one block per angle of incidence.
+
+    The header says ``Source Measured`` for a fitted model's table too (its comments say
+    which model made it): the value the public files and writers we could read give (the
+    University of Arizona's tables, Ansys' Speos-to-Zemax converter, a Radiant imaging
+    sphere's export); none writes ``Model``, which OpticStudio's reader is not known to
+    take. OpticStudio itself could not be run here."""
     from brdfjax.data.formats import write_atomically
 
     symmetric = azimuths.min() >= -1e-9 and azimuths.max() <= 180 + 1e-9
@@ -562,7 +568,7 @@ def _write_table(path, source, incidences, azimuths, radials, table, comments) -
         return "\t".join(f"{v:.10g}" for v in values)
 
     out = [f"# {c}" for c in comments]
-    out += [f"Source\t{source}",
+    out += ["Source\tMeasured",
             f"Symmetry\t{'PlaneSymmetrical' if symmetric else 'Asymmetrical'}",
             "SpectralContent\tMonochrome", "ScatterType\tBRDF",
             "SampleRotation\t1", "0",
