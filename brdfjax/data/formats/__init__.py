@@ -5,6 +5,7 @@
 | brdfjax CSV | ``.csv`` | `brdfjax.data.formats.csv` |
 | NIST PTFE (Germer 2017) | ``.csv``, ``lambda,thetai,...`` header | `brdfjax.data.formats.nist` |
 | ASTM E1392 | ``.astm`` (or text with a ``VARS theta_i,...`` line) | `brdfjax.data.formats.astm` |
+| Starlink ScatterWorks (lumos-sat) | text with a ``phi_i theta_i phi_o theta_o brdf`` line | `brdfjax.data.formats.starlink` |
 | J&C RT-300S export | ``.xls`` | `brdfjax.data.formats.rt300s` |
 | Zemax tabular BSDF | ``.bsdf`` | `brdfjax.data.formats.zemax` |
 
@@ -168,7 +169,7 @@ def _reader(path, options=()):
 
 
 def _format_reader(path):
-    from brdfjax.data.formats import astm, csv, nist, rt300s, zemax
+    from brdfjax.data.formats import astm, csv, nist, rt300s, starlink, zemax
 
     path = Path(path)
     if path.is_dir():
@@ -185,6 +186,8 @@ def _format_reader(path):
     head = read_text(path)[:SNIFF_CHARACTERS]
     if suffix == ".astm" or astm.looks_like(head):
         return astm
+    if starlink.looks_like(head):
+        return starlink
     if suffix == ".csv":
         first = next((line.strip() for line in head.splitlines() if line.strip()), "")
         return nist if first.startswith("lambda,") else csv
