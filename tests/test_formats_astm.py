@@ -166,3 +166,25 @@ def test_angles_in_degrees_are_refused(tmp_path):
     with pytest.raises(DataError, match=r"deg.astm:5: theta_i = 30 is not a polar angle in "
                                         r"radians .*written in degrees"):
         load(path)
+
+
+def test_info_on_a_file_of_several_wavelengths_summarises_each(capsys):
+    """``brdfjax info`` without --wavelength lists every wavelength with its points and
+    BRDF range (it was an error), each checked against the file's own columns."""
+    import csv
+
+    from brdfjax.cli import main
+
+    path = REAL / "nist-germer-ptfe" / "PTFE.data.csv"
+    by_wavelength = {}
+    with open(path, encoding="utf-8") as handle:
+        for row in csv.DictReader(handle):
+            by_wavelength.setdefault(round(float(row["lambda"]) * 1000), []).append(
+                float(row["f_r11"]))
+    assert main(["info", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "wavelengths: 4: 351, 532, 633, 1064 nm" in out
+    for nm, values in by_wavelength.items():
+        line = next(line for line in out.splitlines() if line.split()[:1] == [f"{nm}"])
+        assert line.split()[1] == str(len(values))
+        assert line.endswith(f"{min(values):.4g} to {max(values):.4g}")

@@ -98,9 +98,14 @@ LISTED_INCIDENCES = 12
 
 
 def run_info(args) -> None:
-    from brdfjax.data.formats import load
+    from brdfjax.data.formats import load, load_spectral
 
-    data = load(args.file, **reader_options(args))
+    options = reader_options(args)
+    if "wavelength_nm" not in options and _spectral(args.file):
+        spectra = load_spectral(args.file)
+        if len(spectra) > 1:
+            return info_of_wavelengths(args.file, spectra)
+    data = load(args.file, **options)
     print(f"file:        {args.file}")
     for key, value in data.metadata.items():
         print(f"{key + ':':<12} {value}")
@@ -112,6 +117,30 @@ def run_info(args) -> None:
     print(f"brdf:        {data.brdf.min():.4g} to {data.brdf.max():.4g} 1/sr")
     print(f"sigma:       {'given' if data.sigma is not None else 'none'}")
     print(f"repeats:     {describe_repeats(data)}")
+
+
+def _spectral(path) -> bool:
+    """Whether the file's format may hold several wavelengths (NIST, ASTM)."""
+    from brdfjax.data.formats import _reader
+
+    return hasattr(_reader(path), "read_spectral")
+
+
+def info_of_wavelengths(path, spectra: dict) -> None:
+    """`info` of a file of several wavelengths: one line per wavelength, then how to pick
+    one (``--wavelength``) for the full summary."""
+    first = next(iter(spectra.values()))
+    print(f"file:        {path}")
+    print(f"wavelengths: {len(spectra)}: {', '.join(f'{w:g}' for w in spectra)} nm")
+    for key, value in first.metadata.items():
+        if key != "wavelength_nm":
+            print(f"{key + ':':<12} {value}")
+    print(f"{'nm':>8} {'points':>7}  {'incidences':<40} brdf (1/sr)")
+    for wavelength, data in spectra.items():
+        print(f"{wavelength:>8g} {len(data):>7}  {describe_incidences(data):<40} "
+              f"{data.brdf.min():.4g} to {data.brdf.max():.4g}")
+    print("each wavelength in full: brdfjax info FILE --wavelength NM; fit all at once: "
+          "brdfjax batch FILE --wavelength all --out results.csv")
 
 
 def describe_incidences(data) -> str:
