@@ -28,6 +28,7 @@ COMMAND_MODULES = (
     "brdfjax.commands.datasets",
     "brdfjax.commands.batch",
     "brdfjax.commands.instrument",
+    "brdfjax.commands.plan",
 )
 
 

@@ -58,6 +58,10 @@ MOTOR_LIMITS = {"A": (0.0, 180.0), "B": (0.0, 80.0), "C": (-87.0, 87.0)}
 # Half the angle the detector head subtends seen from the sample: closer than this to the
 # source direction, the head is in the incident beam.
 BLOCKED_DEGREES = 3.0
+# The default motor speed (deg/s, every motor) and sample-changer swap time (s); the cost
+# model of `brdfjax.prediction.design`'s routes.
+MOTOR_SPEED = 20.0
+CHANGER_SECONDS = 1.0
 NOISE_INTEGRATION_MS = 10.0  # the integration time at which --noise is the relative noise
 
 
@@ -164,7 +168,8 @@ class Device:
     """
 
     def __init__(self, sample, *, reference_reflectance=0.99, gain=3.0, noise=0.01, seed=0,
-                 motor_speed=20.0, changer_seconds=1.0, baud=115200, wavelength_nm=1060.0):
+                 motor_speed=MOTOR_SPEED, changer_seconds=CHANGER_SECONDS, baud=115200,
+                 wavelength_nm=1060.0):
         if not 0 < reference_reflectance <= 1:
             raise ValueError(f"reference reflectance {reference_reflectance} not in (0, 1]")
         if gain <= 0 or noise < 0 or motor_speed <= 0 or changer_seconds < 0 or seed < 0:
