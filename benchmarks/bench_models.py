@@ -233,9 +233,7 @@ SPEED_NOTE = (
     "of the box (GGX: alpha = 2 and f0 = 1). brdfjax's Levenberg-Marquardt runs in "
     "unconstrained coordinates, where it crawled towards such a bound for hundreds of steps "
     "(SciPy's trf treats the bound directly); since its convergence round uses Marquardt's "
-    "scaling (`brdfjax/fitting/marquardt.py`) it gets there in tens (GGX's longest start: 664 "
-    "steps before, 73 after, 40 of them screening, while the screening took up to 40 steps; "
-    "51 since it takes up to 20, 20 of them screening).")
+    "scaling (`brdfjax/fitting/marquardt.py`) it gets there in tens.")
 
 
 def bench_speed(models, repeats):

@@ -15,13 +15,14 @@ import serial
 from brdfjax.cli import build_parser, main
 from brdfjax.commands.instrument import scan_plan
 from brdfjax.data.formats import load
-from brdfjax.data.measurements import DataError, Measurements
+from brdfjax.data.measurements import DataError, Measurements, geometry_keys
 from brdfjax.instrument import protocol
 from brdfjax.instrument.acquire import Journal, measure, to_measurements
 from brdfjax.instrument.driver import DisconnectedError, Instrument, RefusedError
 from brdfjax.instrument.plan import Plan, load_plan
 from brdfjax.instrument.simulator import DataSample, NoData
 from brdfjax.models.paper import PAPER_SAMPLES
+from brdfjax.prediction.design import instrument_grid, plan
 
 TRUTH = PAPER_SAMPLES["khaki_paint"]
 SEED = 1
@@ -86,6 +87,39 @@ def test_plan_file_and_its_errors(tmp_path):
         load_plan(path)
     with pytest.raises(ValueError, match=r"motor B \(source arm.*85 deg.*0 to 80"):
         Plan(incidence=(30, 85)).check_limits({"A": (0, 180), "B": (0, 80), "C": (-87, 87)})
+
+
+def test_plan_file_of_listed_geometries_and_its_errors(tmp_path):
+    """`brdfjax plan`'s TOML: plan -> file -> reader gives the same geometries in order;
+    one past the motor limits, in the beam or repeated is refused naming the entry."""
+    design = plan(None, instrument_grid(out_of_plane=True), 12, seed=2)
+    path = tmp_path / "next.toml"
+    path.write_text(design.instrument_plan().to_toml("written by a test"))
+    listed = load_plan(path)
+    assert listed == design.instrument_plan() and listed.blocked == 0
+    measured_at = np.array([p.angles for p in listed.points]).T
+    assert np.array_equal(geometry_keys(*measured_at),
+                          geometry_keys(design.theta_i, design.theta_r, design.phi_r))
+    assert json.loads(json.dumps(listed.to_dict())) == listed.to_dict()  # as the journal keeps it
+    for text, message in [
+        ("geometries = [[10, 20, 180], [85, 20, 180]]\n",
+         (r"next.toml: measurement plan: geometries\[1\] = \[85, 20, 180\]: needs motor B "
+          r"\(source arm \(incidence\)\) at 85 deg, outside its range 0 to 80 deg")),
+        ("geometries = [[10, 20, 180], [30, 89, 0]]\n", r"geometries\[1\] = .*motor C"),
+        ("geometries = [[30, 31, 0]]\n",
+         r"geometries\[0\] = \[30, 31, 0\]: the detector would be 1 deg from the source"),
+        ("geometries = [[30, 0, 0], [30, 0, 90]]\n",
+         r"geometries\[1\] = .*the same geometry as geometries\[0\]"),
+        ("geometries = [[30, 20]]\n", r"geometries\[0\] = \[30, 20\]: give \[theta_i"),
+        ("incidence = [10]\ngeometries = [[30, 20, 0]]\n",
+         "lists geometries and also has incidence"),
+    ]:
+        path.write_text(text)
+        with pytest.raises(DataError, match=message):
+            load_plan(path)
+    narrower = {"A": (0, 180), "B": (0, 50), "C": (-87, 87)}
+    with pytest.raises(ValueError, match=r"geometries\[1\] = \[60, 20, 180\]: .*0 to 50"):
+        Plan(geometries=((10, 20, 180), (60, 20, 180))).check_limits(narrower)
 
 
 def test_measure_options_make_the_plan(tmp_path):
@@ -305,3 +339,15 @@ def test_a_repeated_command_runs_once_and_a_killed_simulator_is_reported(simulat
         process.wait()
         with pytest.raises(DisconnectedError, match="lost the instrument"):
             instrument.position("C")
+
+
+@pytest.mark.timeout(120)
+def test_measure_visits_the_listed_geometries_in_order(simulator, tmp_path):
+    _, port = simulator()
+    listed = Plan(geometries=((50, 30, 180), (10, 40, 0), (10, 0, 0), (30, 25, 90),
+                              (30, 60, 300)), average=2, integration_ms=1)
+    result = measure(port, listed, tmp_path / "listed.csv", progress=False)
+    assert result.read_now == 10
+    data = load(tmp_path / "listed.csv")
+    assert np.array_equal(data.geometries(), geometry_keys(*np.array(listed.geometries).T))
+
