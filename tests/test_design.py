@@ -22,7 +22,7 @@ from brdfjax.prediction.design import (
     process_kernel,
     route,
 )
-from brdfjax.prediction.discrepancy import _physical, _unconstrained, features
+from brdfjax.prediction.discrepancy import _kernel, _physical, _unconstrained, features
 
 
 @pytest.fixture(scope="module")
@@ -55,6 +55,9 @@ def test_alc_reduction_equals_the_brute_force_update():
     process, amplitude, noise = _process()
     kernel = process_kernel(process)
     known, candidates, region = (rng.uniform(0, 1.2, (n, 3)) for n in (12, 25, 40))
+    # The NumPy kernel is the discrepancy's own (tinygp's).
+    assert np.allclose(kernel(known, region), np.asarray(_kernel(process._u, 3)(known, region)),
+                       rtol=1e-12, atol=1e-14)
     design = integrated_variance_design(kernel, amplitude**2, noise, known, candidates,
                                         region, budget=4)
     before = _region_variance(kernel, amplitude**2, noise, known, region)
@@ -62,8 +65,15 @@ def test_alc_reduction_equals_the_brute_force_update():
     for c in (0, 7, 13, 24):
         after = _region_variance(kernel, amplitude**2, noise,
                                  np.vstack([known, candidates[c:c + 1]]), region)
-        assert design["first"][c] == pytest.approx(before - after, abs=1e-9)
-    assert design["picks"][0] == np.argmax(design["first"])
+        assert design["drops"][0, c] == pytest.approx(before - after, abs=1e-9)
+    assert design["picks"][0] == np.argmax(design["drops"][0])
+    # The second step's drops, given the readings and the first pick.
+    given = np.vstack([known, candidates[design["picks"][:1]]])
+    before = _region_variance(kernel, amplitude**2, noise, given, region)
+    for c in (2, 11, 19):
+        after = _region_variance(kernel, amplitude**2, noise,
+                                 np.vstack([given, candidates[c:c + 1]]), region)
+        assert design["drops"][1, c] == pytest.approx(before - after, abs=1e-9)
     # The rank-one updates after each pick: the variance given all picks, by np.linalg.
     after = _region_variance(kernel, amplitude**2, noise,
                              np.vstack([known, candidates[design["picks"]]]), region)
@@ -172,3 +182,14 @@ def test_bad_input_is_one_line_before_any_work(tmp_path, capsys):
         assert err.startswith("brdfjax plan: error: ")
         assert re.search(message, err), err
     assert not list(tmp_path.glob("next*"))
+
+
+def test_a_measured_geometry_is_left_out_whatever_its_azimuth_is_written_as():
+    from brdfjax.prediction.design import check_inputs
+
+    candidates = Measurements.from_degrees([30, 30, 30], [40, 40, 0], [278.1301, 100, 45],
+                                           np.full(3, np.nan))
+    measured = Measurements.from_degrees([30, 30, 30], [40, 0, 20], [-81.8699, 0, 180],
+                                         [0.3, 0.3, 0.3])
+    found = check_inputs(candidates, 1, measured=measured)
+    assert found.measured == 2 and found.index.tolist() == [1]

@@ -17,9 +17,9 @@ learned discrepancy's Gaussian process (`brdfjax.prediction.discrepancy`):
    if ``c`` were read is, in closed form,
    ``sum_r k_n(r, c)^2 / (k_n(c, c) + noise^2)``, with ``k_n`` the posterior covariance
    given the points so far; the candidate of the largest drop is taken, the process is
-   conditioned on it (a rank-one update of ``k_n(R, C)`` and of ``k_n(c, c)``), and so on
-   ``budget`` times. The matrix algebra is NumPy's, vectorised over the candidates; it
-   costs ``O(n^3 + n |R| |C| + budget |R| |C|)`` for ``n`` readings.
+   conditioned on it (a rank-one term of ``k_n``), and so on ``budget`` times. The matrix
+   algebra is NumPy's, vectorised over the candidates; it costs ``O(n^3 + n |R| |C| +
+   budget |R| |C|)`` for ``n`` readings.
 
 The region is where the prediction is wanted: by default the candidates themselves (all of
 them, measured or not). It is reduced to at most `REGION_POINTS` points and the candidates
@@ -68,7 +68,6 @@ from brdfjax.data.measurements import Measurements, geometry_keys
 REGION_POINTS = 1024
 CANDIDATE_POINTS = 8192
 CONDITION_POINTS = 1024
-_KERNEL_BLOCK = 256  # rows of a kernel matrix evaluated at once (memory: rows x columns x D)
 
 
 @dataclass
@@ -268,13 +267,13 @@ def check_inputs(candidates: Measurements, budget, *, region: Measurements | Non
                 f"theta_r {angles[k][1]:g}, phi_r {angles[k][2]:g} deg): {reasons[k]}")
     angles = np.degrees([candidates.theta_i, candidates.theta_r, candidates.phi_r]).T
     reachable = np.array([unreachable(*g) is None for g in angles])
-    keys = candidates.geometries()
+    keys = _keys(candidates)
     _, first = np.unique(keys, axis=0, return_index=True)
     distinct = np.zeros(len(candidates), bool)
     distinct[first] = True
     done = np.zeros(len(candidates), bool)
     if measured is not None:
-        known = {tuple(row) for row in measured.geometries()}
+        known = {tuple(row) for row in _keys(measured)}
         done = np.array([tuple(row) in known for row in keys])
     usable = reachable & distinct & ~done
     found = Candidates(np.flatnonzero(usable), int((~reachable).sum()),
@@ -361,6 +360,11 @@ def integrated_variance_design(kernel, prior_variance: float, noise: float, know
     """The greedy integrated-variance (ALC) design of a Gaussian process with fixed
     hyperparameters (see the module docstring).
 
+    The posterior cross-covariance ``k_n(R, C)`` is formed once, given ``known``; each pick
+    adds a rank-one term, kept as its two factors, so that a step costs one matrix-vector
+    product with it and the column sums of squares (the drops' numerators) are updated in
+    closed form, instead of rewriting the matrix.
+
     Args:
         kernel: ``kernel(x1 (N, D), x2 (M, D)) -> (N, M)`` covariances, without noise.
         prior_variance: ``kernel(x, x)`` (a stationary kernel's amplitude squared).
@@ -372,15 +376,15 @@ def integrated_variance_design(kernel, prior_variance: float, noise: float, know
         available: mask (m,) of the candidates that may be chosen (default: all).
 
     Returns:
-        ``{"picks": indices into candidates in the order chosen, "first": the variance drop
-        over the region of each candidate given ``known`` alone (m,), "before", "after":
-        the posterior variance (latent) summed over the region given ``known``, and given
+        ``{"picks": indices into candidates in the order chosen, "drops": the variance drop
+        over the region of every candidate at each step (budget, m), "before", "after": the
+        posterior variance (latent) summed over the region given ``known``, and given
         ``known`` and the picks}``.
     """
     known, candidates, region = (np.asarray(x, float).reshape(len(x), -1)
                                  for x in (known, candidates, region))
     noise2 = float(noise) ** 2
-    cross = kernel(region, candidates)  # k(R, C), then k_n(R, C)
+    cross = kernel(region, candidates)  # k_n(R, C) given the readings alone
     variance_c = np.full(len(candidates), float(prior_variance))
     variance_r = np.full(len(region), float(prior_variance))
     if len(known):
@@ -396,48 +400,57 @@ def integrated_variance_design(kernel, prior_variance: float, noise: float, know
         whitened_c = np.zeros((0, len(candidates)))
     free = np.ones(len(candidates), bool) if available is None else np.array(available, bool)
     before = float(variance_r.sum())
-    first, picks, updates = None, [], []
+    squares = np.sum(cross**2, axis=0)  # sum_r k(r, c)^2 of the current posterior
+    updates_r, updates_c, picks, drops = [], [], [], []
     for _ in range(budget):
-        drop = np.sum(cross**2, axis=0) / (np.maximum(variance_c, 0.0) + noise2)
-        if first is None:
-            first = drop.copy()
+        drop = np.maximum(squares, 0.0) / (np.maximum(variance_c, 0.0) + noise2)
+        drops.append(drop)
         pick = int(np.argmax(np.where(free, drop, -np.inf)))
         picks.append(pick)
         free[pick] = False
-        # k_n(C, pick): the prior, less what the readings and the earlier picks explain.
-        column = kernel(candidates, candidates[pick:pick + 1])[:, 0]
-        column -= whitened_c.T @ whitened_c[:, pick]
-        for update in updates:
-            column -= update * update[pick]
+        # k(R, pick) and k(C, pick) of the current posterior: given the readings, less the
+        # earlier picks' rank-one terms.
+        done_r, done_c = np.array(updates_r).reshape(-1, len(region)), \
+            np.array(updates_c).reshape(-1, len(candidates))
+        column_r = cross[:, pick] - done_r.T @ done_c[:, pick]
+        column_c = kernel(candidates[pick:pick + 1], candidates)[0]  # symmetric
+        column_c -= whitened_c.T @ whitened_c[:, pick] + done_c.T @ done_c[:, pick]
         scale = np.sqrt(max(variance_c[pick], 0.0) + noise2)
-        update_c, update_r = column / scale, cross[:, pick] / scale
-        cross -= np.outer(update_r, update_c)
+        update_r, update_c = column_r / scale, column_c / scale
+        # sum_r (k(r, c) - u_r v_c)^2 = squares - 2 v_c (k(R, c) . u) + v_c^2 |u|^2
+        projected = cross.T @ update_r - done_c.T @ (done_r @ update_r)
+        squares = squares - 2 * update_c * projected + update_c**2 * (update_r @ update_r)
         variance_c -= update_c**2
         variance_r -= update_r**2
-        updates.append(update_c)
-    return {"picks": np.array(picks, int), "first": first, "before": before,
+        updates_r.append(update_r)
+        updates_c.append(update_c)
+    return {"picks": np.array(picks, int), "drops": np.array(drops), "before": before,
             "after": float(variance_r.sum())}
 
 
 def process_kernel(process):
     """The covariance function (without noise) of a fitted
     `brdfjax.prediction.discrepancy.Discrepancy`, as `integrated_variance_design` takes
-    it: ``kernel(x1 (N, D), x2 (M, D)) -> (N, M)``, NumPy arrays."""
-    import jax
-    import jax.numpy as jnp
+    it: ``kernel(x1 (N, D), x2 (M, D)) -> (N, M)``, NumPy arrays. It is the process's own
+    kernel (`brdfjax.prediction.discrepancy._kernel`: ``amplitude^2 SE(angles) (share + (1 -
+    share) SE(theta_i))``) written in NumPy, the squared distances by matrix products:
+    planning 20 readings from 300 among 5000 candidates spent 0.8 s in it, against 3.3 s
+    with tinygp's kernel compiled (2 loaded cores)."""
+    from brdfjax.prediction.discrepancy import _physical
 
-    from brdfjax.prediction.discrepancy import _kernel
+    _, amplitude, lengths, share, _ = (np.asarray(v) for v in _physical(
+        np.asarray(process._u), process._x.shape[1]))
 
-    covariance = _kernel(jnp.asarray(process._u), process._x.shape[1])
-    gram = jax.jit(lambda x1, x2: covariance(x1, x2))
+    def squared(x1, x2):
+        distance = (np.sum(x1**2, axis=1)[:, None] + np.sum(x2**2, axis=1)[None, :]
+                    - 2 * x1 @ x2.T)
+        return np.maximum(distance, 0.0)
 
     def kernel(x1, x2):
-        out = np.empty((len(x1), len(x2)))
-        for start in range(0, len(x1), _KERNEL_BLOCK):
-            block = x1[start:start + _KERNEL_BLOCK]
-            out[start:start + len(block)] = np.asarray(gram(jnp.asarray(block),
-                                                            jnp.asarray(x2)))
-        return out
+        x1, x2 = (np.asarray(x, float) / lengths for x in (x1, x2))
+        angles = np.exp(-0.5 * squared(x1[:, :-1], x2[:, :-1]))
+        incidence = np.exp(-0.5 * (x1[:, -1:] - x2[:, -1:].T) ** 2)
+        return amplitude**2 * angles * (share + (1 - share) * incidence)
 
     return kernel
 
@@ -478,6 +491,14 @@ def _alc_plan(measured, candidates, index, budget, *, region, model, seed):
     picks = np.searchsorted(index, pool[design["picks"]])
     return (picks, design["before"] / where.size, design["after"] / where.size, where.size,
             process, result.model.name)
+
+
+def _keys(data: Measurements) -> np.ndarray:
+    """`geometry_keys` of ``data`` with ``phi_r`` taken modulo 360 before it rounds, so that
+    -81.8699 and 278.1301 deg give one key (rounded first, the first becomes
+    278.13009999999997)."""
+    return geometry_keys(np.degrees(data.theta_i), np.degrees(data.theta_r),
+                         np.mod(np.degrees(data.phi_r), 360.0))
 
 
 def _features_of(candidates: Measurements, index) -> np.ndarray:
