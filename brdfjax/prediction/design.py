@@ -405,7 +405,11 @@ def integrated_variance_design(kernel, prior_variance: float, noise: float, know
     for _ in range(budget):
         drop = np.maximum(squares, 0.0) / (np.maximum(variance_c, 0.0) + noise2)
         drops.append(drop)
-        pick = int(np.argmax(np.where(free, drop, -np.inf)))
+        # The first of the candidates within 1e-9 of the largest drop: geometries the
+        # process cannot tell apart (mirror images in azimuth) tie to rounding, and the
+        # choice among them must not follow the last bits of the input.
+        drop = np.where(free, drop, -np.inf)
+        pick = int(np.argmax(drop >= drop.max() * (1 - 1e-9)))
         picks.append(pick)
         free[pick] = False
         # k(R, pick) and k(C, pick) of the current posterior: given the readings, less the
