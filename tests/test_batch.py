@@ -51,8 +51,8 @@ def mixed_batch():
     The synthetic scan has another geometry and the same point count (120) as the real
     runs, so the single fits compile once; the batch pads and masks the other geometry.
     """
-    converging = load(RAW / "NiTE_on_invar_v1o0B_20250916.xls")
-    capped = load(RAW / "ANOPLATE_AnoBlack_EC1_Alum6061_v1o0_20251115.xls")
+    converging = load(RAW / "NiTE_on_invar_v1o0B_20250916.xls", in_plane=True)
+    capped = load(RAW / "ANOPLATE_AnoBlack_EC1_Alum6061_v1o0_20251115.xls", in_plane=True)
     brdf = converging.brdf.copy()
     brdf[7] = np.nan
     broken = Measurements(converging.theta_i, converging.theta_r, converging.phi_r, brdf,
@@ -605,13 +605,13 @@ def test_the_csv_flags_parameters_at_a_bound_and_poor_incidences(tmp_path, capsy
 
     ec1 = RAW / "ANOPLATE_AnoBlack_EC1_Alum6061_v1o0_20251115.xls"
     out = tmp_path / "results.csv"
-    assert main(["batch", str(ec1), "--out", str(out)]) == 0
+    assert main(["batch", str(ec1), "--in-plane", "--out", str(out)]) == 0
     capsys.readouterr()
     (row,) = rows(out.read_text())
     assert row["status"] == "converged"
     assert row["at_bound"] == "kb"
     assert row["poor_incidences"] == "10 30 50"
-    assert main(["fit", str(ec1), "--uncertainty", "none"]) == 0
+    assert main(["fit", str(ec1), "--in-plane", "--uncertainty", "none"]) == 0
     printed = capsys.readouterr().out
     assert "kb =          1e-14   (at a bound)" in printed
     assert "E exceeds 3x the overall 1.7 % at 10 deg (17.7 %), 30 deg (17 %), 50 deg" in printed

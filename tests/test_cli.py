@@ -96,7 +96,7 @@ def test_train_incidence_holds_out_the_rest(tmp_path, capsys):
 def test_convert_and_info(tmp_path, capsys):
     target = tmp_path / "steel.csv"
     source = str(REAL / "uaz-loft-rt300s/raw/NiTE_on_steel_v1o0A_20250915.xls")
-    assert main(["convert", source, str(target)]) == 0
+    assert main(["convert", source, str(target), "--in-plane"]) == 0
     assert main(["info", str(target)]) == 0
     out = capsys.readouterr().out
     assert "incidences:  10, 30, 50, 70 deg" in out and "in-plane:    yes" in out

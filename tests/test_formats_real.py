@@ -63,7 +63,7 @@ def test_rt300s_matches_the_derived_csv_for_every_run():
         by_run[row["run"]].append(row)
     assert len(by_run) == 14
     for run, rows in by_run.items():
-        data = rt300s.read(rt300s_file(run), keep_beam_crossing=True)
+        data = rt300s.read(rt300s_file(run), keep_beam_crossing=True, in_plane=True)
         ours = dict(zip(zip(rounded(np.degrees(data.theta_i)), rounded(signed_receive(data))),
                         data.brdf))
         assert len(ours) == len(rows), run
@@ -76,8 +76,9 @@ def test_rt300s_matches_the_derived_csv_for_every_run():
 
 
 def test_rt300s_conventions_and_metadata():
+    """The plane of incidence (``in_plane=True``), read as before the files were read whole."""
     path = UAZ / "raw" / "NiTE_on_steel_v1o0A_20250915.xls"
-    data = load(path)
+    data = load(path, in_plane=True)
     assert data.in_plane and len(data) == 120
     assert data.metadata["blank"] == "blank_v2o0_20250911.xls"
     assert data.metadata["instrument"] == "J&C RT-300S"
@@ -112,7 +113,7 @@ def test_rt300s_without_a_blank_nearby_says_to_pass_one(tmp_path):
     with pytest.raises(DataError, match=r"no blank file.*pass blank="):
         load(sample)
     data = load(sample, blank=UAZ / "raw" / "blank_v2o0_20250911.xls")
-    assert len(data) == 120 and data.metadata["sample"] == "sample"
+    assert len(data) == 2478 and data.metadata["sample"] == "sample"  # the whole 3-D scan
 
 
 def test_rt300s_with_two_blanks_nearby_asks_which(tmp_path):
@@ -132,7 +133,7 @@ def test_rt300s_blank_on_another_grid_names_the_missing_geometry():
     # The legacy blank has a 1-degree grid; the new samples' 5-degree grid is a subset of
     # it, but the reverse is not: a legacy sample against the new blank misses Receive -79.
     with pytest.raises(DataError, match=r"blank_v2o0_20250911.xls has no reading at "
-                                        r"Incidence 10, Receive -79"):
+                                        r"Azimuth -90, Incidence 10, Receive -79"):
         rt300s.read(UAZ / "raw_legacy_1deg" / "01aeroglaze.xls",
                     blank=UAZ / "raw" / "blank_v2o0_20250911.xls")
 
@@ -193,7 +194,7 @@ def test_rt300s_scan_without_in_plane_rows():
     scan = rt300s.Scan(np.array([0.0, 10.0]), np.array([10.0, 10.0]), np.array([5.0, 5.0]),
                        np.array([0.1, 0.1]), ("Sheet1!B", "Sheet1!C"))
     with pytest.raises(DataError, match=r"no in-plane measurements \(Azimuth = -90\)"):
-        rt300s.in_plane(scan, "x.xls")
+        rt300s.in_plane_slice(scan, "x.xls")
 
 
 # --- Zemax ------------------------------------------------------------------------------

@@ -52,7 +52,7 @@ def test_ctrl_c_in_the_second_chunk_exits_130_with_an_intact_csv(environment, tm
     between and inside chunks and inside a compilation: 130 every time, never a crash, and
     a CSV of whole chunks whose rows are all complete."""
     command = [sys.executable, "-m", "brdfjax.cli", "batch", str(RT300S / "raw"),
-               str(RT300S / "raw_legacy_1deg"), "--model", "rpv", "--chunk-size", "3",
+               str(RT300S / "raw_legacy_1deg"), "--in-plane", "--model", "rpv", "--chunk-size", "3",
                *SMALL]
     # After the first chunk: at once, and 0.3 s into the second; after the second chunk,
     # in the third, which mixes in the 1-degree runs (another shape: XLA compiles).
@@ -80,7 +80,8 @@ def test_ctrl_c_stops_models_within_two_seconds_while_it_compiles(environment, t
     fresh = {**environment, "BRDFJAX_CACHE": str(tmp_path / "cache")}
     with open(log, "w") as stderr:
         process = start([sys.executable, "-m", "brdfjax.cli", "models",
-                         str(RT300S / "raw" / "NiTE_on_steel_v1o0A_20250915.xls")], fresh,
+                         str(RT300S / "raw" / "NiTE_on_steel_v1o0A_20250915.xls"), "--in-plane"],
+                        fresh,
                         stderr=stderr)
         deadline = time.monotonic() + 120
         while "models:" not in log.read_text() and process.poll() is None:

@@ -527,7 +527,8 @@ def test_model_auto_predicts_with_the_model_to_predict_with(monkeypatch, capsys)
         return comparison
 
     monkeypatch.setattr(selection, "compare_models", two_candidates)
-    data = load(REAL / "uaz-loft-rt300s" / "raw" / "NiTE_on_steel_v1o0A_20250915.xls")
+    data = load(REAL / "uaz-loft-rt300s" / "raw" / "NiTE_on_steel_v1o0A_20250915.xls",
+                in_plane=True)
     assert choose_model(data, 0) == "ggx" and seen == ["none"]
     assert "predicting with" not in capsys.readouterr().out
     assert choose_model(data, 0, predicting=True) == "lambert" and seen[-1] == "gp"

@@ -134,6 +134,8 @@ def reader_options(args) -> dict:
     options = {}
     if getattr(args, "blank", None):
         options["blank"] = args.blank
+    if getattr(args, "in_plane", False):
+        options["in_plane"] = True
     wavelength = getattr(args, "wavelength", None)
     if wavelength is not None:
         try:  # batch's --wavelength may also be "all" or a list (one sample each)
@@ -156,6 +158,10 @@ def _check_figure_format(label: str, given: str) -> None:
 def add_reader_options(parser, spectral: bool = False) -> None:
     parser.add_argument("--blank", help="RT-300S blank .xls to subtract (default: the "
                                         "blank_*.xls beside the file)")
+    parser.add_argument("--in-plane", action="store_true",
+                        help="RT-300S .xls: read the plane of incidence only (Azimuth -90, "
+                             "as brdfjax read these files before 3-D reading), not every "
+                             "azimuth of the scan")
     if spectral:
         parser.add_argument("--wavelength", metavar="NM|all|NM,NM",
                             help="multi-wavelength files (NIST, ASTM, Zemax): read one "

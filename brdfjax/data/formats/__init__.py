@@ -38,8 +38,9 @@ def load(path, **options) -> Measurements:
 
     Args:
         path: the file.
-        **options: reader options: ``blank=`` (RT-300S blank file), ``wavelength_nm=``
-            (NIST, ASTM and Zemax files).
+        **options: reader options: ``blank=`` (RT-300S blank file), ``in_plane=True``
+            (RT-300S: the plane of incidence only, not the whole 3-D scan),
+            ``wavelength_nm=`` (NIST, ASTM and Zemax files).
 
     Returns:
         The validated `Measurements`.
@@ -144,7 +145,7 @@ def split_lines(text: str) -> list[str]:
 
 
 # The command-line option of each reader option, for an error that names what was typed.
-OPTION_FLAGS = {"blank": "--blank", "wavelength_nm": "--wavelength"}
+OPTION_FLAGS = {"blank": "--blank", "in_plane": "--in-plane", "wavelength_nm": "--wavelength"}
 
 
 def _reader(path, options=()):
@@ -163,8 +164,9 @@ def _reader(path, options=()):
             kind = reader.__name__.rsplit(".", 1)[-1]
             raise DataError(f"{OPTION_FLAGS[name]} does not apply to this file "
                             f"({kind} format)", path,
-                            hint="--blank is for RT-300S .xls scans, --wavelength for NIST, "
-                                 "ASTM, Zemax and CSV files of several wavelengths")
+                            hint="--blank and --in-plane are for RT-300S .xls scans, "
+                                 "--wavelength for NIST, ASTM, Zemax and CSV files of several "
+                                 "wavelengths")
     return reader
 
 
