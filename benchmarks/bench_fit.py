@@ -163,7 +163,7 @@ def bench_noisy(seeds):
 def bench_real():
     rows = []
     for path in REAL:
-        data = load(path)
+        data = load(path, in_plane=True)
         result = fit(data)
         _, e_scipy, _ = scipy_de_ls(data, seed=0, generous=True,
                                     objectives=unit_objectives(data, shared=True))
@@ -222,7 +222,7 @@ def bench_compare(repeats):
 
     sets = {"white paint (synthetic, 716 pts)": white_paint_train(),
             "NiTE on steel A (real)": load(RT300S / "raw" /
-                                            "NiTE_on_steel_v1o0A_20250915.xls")}
+                                            "NiTE_on_steel_v1o0A_20250915.xls", in_plane=True)}
     text, fig = [], plt.figure(figsize=(11, 4.5))
     for k, (label, data) in enumerate(sets.items()):
         runs = compare(data, repeats=repeats)

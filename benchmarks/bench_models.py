@@ -98,7 +98,7 @@ def real_runs():
     def wanted(label):
         return RUN_FILTER is None or any(part in label for part in RUN_FILTER)
 
-    runs = [(f"{p.parent.name}/{p.name}", load(p)) for p in REAL
+    runs = [(f"{p.parent.name}/{p.name}", load(p, in_plane=True)) for p in REAL
             if wanted(f"{p.parent.name}/{p.name}")]
     if wanted("nist PTFE 633 nm"):
         try:
@@ -241,7 +241,7 @@ def bench_speed(models, repeats):
     from brdfjax.data.formats import load
     from brdfjax.data.synthetic import paper_sample
 
-    sets = {"NiTE on steel A (real, 120 pts)": load(SPEED_RUN),
+    sets = {"NiTE on steel A (real, 120 pts)": load(SPEED_RUN, in_plane=True),
             "white paint (synthetic, 716 pts)":
                 paper_sample("white_paint", noise=0.025, seed=1).at_incidences(TRAIN)}
     from brdfjax.fitting.fit import fit
@@ -343,7 +343,7 @@ def bench_command(repeats):
             "01aeroglaze (600 points)": (RT300S / "raw_legacy_1deg" / "01aeroglaze.xls",
                                          10.0 * 1.5 if SUFFIX else 10.0)}
     cli = str(Path(sys.executable).parent / "brdfjax")
-    timed = time_commands({label: [cli, "models", str(path)]
+    timed = time_commands({label: [cli, "models", str(path), "--in-plane"]
                            for label, (path, _) in runs.items()}, repeats)
     rows = []
     for label, (_, target) in runs.items():

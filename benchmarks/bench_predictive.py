@@ -114,7 +114,7 @@ def bench_real(models, runs):
     for model in models:
         per_run, all95, all68, all_widths, used = {}, [], [], [], []
         for path in runs:
-            inside95, inside68, widths, chosen = held_out_predictions(brdfjax.load(path), model)
+            inside95, inside68, widths, chosen = held_out_predictions(brdfjax.load(path, in_plane=True), model)
             used += chosen
             per_run[path.name] = inside95.mean()
             all95.append(inside95)
@@ -182,7 +182,7 @@ def repeatability(paths) -> tuple[float, float]:
 
     runs = []
     for path in paths:
-        data = brdfjax.load(path)
+        data = brdfjax.load(path, in_plane=True)
         keys = geometry_keys(*np.degrees([data.theta_i, data.theta_r, data.phi_r]))
         runs.append(dict(zip(map(tuple, keys), data.brdf)))
     shared = set.intersection(*(set(r) for r in runs))
@@ -303,7 +303,7 @@ def bench_discrepancy(models, runs):
         nite = {"none": [], "gp": []}  # the relative errors of the NiTE runs
         models_used = {"none": [], "gp": []}
         for path in runs:
-            results, used, first = held_out_both(brdfjax.load(path), model)
+            results, used, first = held_out_both(brdfjax.load(path, in_plane=True), model)
             for kind in models_used:
                 models_used[kind] += used[kind]
             group = "decide" if path.name in DECIDE else "confirm"
@@ -420,10 +420,11 @@ def bench_speed(repeats):
                 commands["fit", label, kind] = [
                     cli, "fit", str(path), "--model", "ggx", "--uncertainty", "none",
                     "--predict", str(path), "--predict-out", f"{tmp}/p.csv",
-                    "--discrepancy", kind]
+                    "--discrepancy", kind, "--in-plane"]
         for kind in ("none", "gp"):
             commands["models", "NiTE on steel A", kind] = [
-                cli, "models", str(files["NiTE on steel A"][0]), "--discrepancy", kind]
+                cli, "models", str(files["NiTE on steel A"][0]), "--discrepancy", kind,
+                "--in-plane"]
         times = time_commands(commands, repeats)
     load = load_average()
 

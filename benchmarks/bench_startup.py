@@ -43,9 +43,10 @@ def commands(folder: Path) -> dict:
          train)
     brdfjax = [sys.executable, "-m", "brdfjax.cli"]
     return {"fit": [*brdfjax, "fit", str(train)],
-            "models": [*brdfjax, "models", str(RAW / "NiTE_on_steel_v1o0A_20250915.xls")],
-            "batch auto": [*brdfjax, "batch", str(RAW), "--model", "auto", "--out",
-                           str(folder / "auto.csv")]}
+            "models": [*brdfjax, "models", str(RAW / "NiTE_on_steel_v1o0A_20250915.xls"),
+                       "--in-plane"],
+            "batch auto": [*brdfjax, "batch", str(RAW), "--model", "auto", "--in-plane",
+                           "--out", str(folder / "auto.csv")]}
 
 
 def first_run(command, tree: Path, folder: Path) -> tuple[float, float]:
