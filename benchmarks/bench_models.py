@@ -65,7 +65,7 @@ TRUTHS = {
     "lambert": (0.05,),
     "rpv": (2.2, 0.69, 0.887, 0.7),
     "torrance-sparrow": (4.9, 3.0, 1.26, 0.01),
-    # Models added later (MODELS.md): a back-scatter lobe of a black coating's size, ABg of
+    # Models added later (the docs' Models page): a back-scatter lobe of a black coating's size, ABg of
     # an anodize's per-incidence fit, Ross-Li of a bright soil, and the three sums. Ross-Li's
     # sparse kernel is negative: (0.3, 0.1, 0.05), the truth until 2026-12-06, reached -71 %
     # of the peak at this geometry's grazing angles, data that fit() now refuses as load()

@@ -2,7 +2,7 @@
 
 Every method fits the same model (by default Eq. 5; any model of `brdfjax.models`),
 evaluated by the same compiled function, to the same data, minimising the same E of
-Eq. (6) over the same box (the model's `brdfjax.fitting.bounds.default_bounds`), in one process:
+Eq. (6) over the same box (the model's `brdfjax.models.bounds.default_bounds`), in one process:
 
 - ``brdfjax hybrid``: genetic search, then Levenberg-Marquardt (the default);
 - ``brdfjax ga``: the genetic search alone;
@@ -45,10 +45,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from brdfjax.fitting.bounds import default_bounds, from_unit, to_unit
 from brdfjax.fitting.fit import fit
 from brdfjax.fitting.objective import error, problem, residuals, solve_linear
 from brdfjax.models import Model, get
+from brdfjax.models.bounds import default_bounds, from_unit, to_unit
 
 # Every method's stopping rule, as stated in the benchmark tables.
 TOLERANCES = {

@@ -382,7 +382,7 @@ def plot_spectral(records, path, names, title: str = ""):
 
 def _corner_coordinates(result) -> tuple[np.ndarray, list]:
     """A result's draws in the prior's coordinates (log10 kb, asinh b, ...), labelled."""
-    from brdfjax.fitting.bounds import scale_label, scaled
+    from brdfjax.models.bounds import scale_label, scaled
     from brdfjax.models.paper import PARAMETER_NAMES
 
     with np.errstate(divide="ignore"):
@@ -424,7 +424,7 @@ def plot_corner(results, path, title: str = "", truths=None, names=None):
                             plot_density=False, fill_contours=False, smooth=1.0,
                             hist_kwargs={"density": True})
     if truths is not None:
-        from brdfjax.fitting.bounds import scaled
+        from brdfjax.models.bounds import scaled
 
         corner.overplot_lines(fig, scaled(np.asarray(truths, dtype=float), results[0].bounds),
                               color="black", lw=1)

@@ -18,12 +18,12 @@ import numpy as np
 import pytest
 from conftest import REAL
 
+from brdfjax.cluster import fit_chunk
 from brdfjax.commands.batch import expand
 from brdfjax.data.formats import load, save
 from brdfjax.data.measurements import Measurements
 from brdfjax.data.synthetic import paper_geometry, synthesize
 from brdfjax.fitting.batch import fit_batch
-from brdfjax.fitting.cluster import fit_chunk
 from brdfjax.fitting.fit import fit
 from brdfjax.fitting.polish import SCREEN_STEPS
 from brdfjax.models.paper import PAPER_SAMPLES
@@ -231,7 +231,7 @@ def test_an_empty_batch_and_an_empty_sample(mixed_batch):
     assert fit_batch([]) == []
     empty = mixed_batch[0][0].select(np.zeros(120, dtype=bool))
     (result,) = fit_batch([empty], **SMALL)
-    assert result.status == "failed" and "no measurements" in result.message
+    assert result.status == "failed" and "has no readings" in result.message
 
 
 def test_inputs_expand_from_directories_and_globs_without_blanks(tmp_path):

@@ -270,6 +270,24 @@ def strict_json(name):
     raise AssertionError(f"{name} in a JSON file: strict readers refuse it")
 
 
+def test_a_fit_of_two_points_is_underdetermined_not_converged(tmp_path, capsys):
+    """``brdfjax fit two.csv --model ggx`` said ``status converged`` with E of 4.6e-27 %
+    and ks = 363 (issue 47, defect 1): it now says underdetermined, why, in one warning
+    line, and estimates no uncertainty from it; the JSON carries the status and message."""
+    two = tmp_path / "two.csv"
+    two.write_text("theta_i,theta_r,phi_r,brdf\n30,20,0,0.31\n60,40,180,0.52\n")
+    out = tmp_path / "two.json"
+    assert main(["fit", str(two), "--model", "ggx", "--json", str(out)]) == 0
+    printed, said = capsys.readouterr()
+    assert "ggx model, status underdetermined" in printed
+    assert "uncertainty: none, the fit is underdetermined" in printed
+    warning = [line for line in said.splitlines() if "UnderdeterminedWarning" in line]
+    assert len(warning) == 1 and "2 distinct geometries (theta_i, theta_r, phi_r) for the 4 " \
+        "parameters of ggx" in warning[0], said
+    record = json.loads(out.read_text())
+    assert record["status"] == "underdetermined" and "2 distinct" in record["message"]
+
+
 def test_numerical_warnings_become_one_line_each(monkeypatch, capsys):
     import brdfjax.commands.data as commands
 
@@ -434,6 +452,42 @@ def test_bound_notes_explain_the_kb_b_trade_and_hint_only_where_widening_helps()
     assert narrow.endswith("widen it with --bound f0=LO:HI (within its physical range, 0 to 1)")
 
 
+def test_a_note_never_offers_a_bound_past_a_physical_limit(capsys):
+    """Ross-Li's f_geo = 0 at its lower bound was told "widen it with --bound f_geo=LO:HI",
+    and --bound f_vol=-1:1 was taken (issue 47, defect 3). In every model, a parameter at a
+    bound that is the end of its physical range is told no wider bound exists; at a bound
+    inside the range, it is offered a wider one within the range."""
+    from brdfjax.commands.fitting import bound_notes
+    from brdfjax.models import available, get
+    from brdfjax.models.bounds import default_bounds
+
+    for name in available():
+        model, box = get(name), default_bounds(get(name))
+        limits = {p.name: p.limits for p in model.parameters if p.limits}
+        ranges = dict(zip(model.names, zip(box.lower.tolist(), box.upper.tolist())))
+        for k, parameter in enumerate(model.parameters):
+            for side, bound in (("lower", box.lower[k]), ("upper", box.upper[k])):
+                params = np.where(np.arange(model.size) == k, bound, (box.lower + box.upper) / 2)
+                note, = bound_notes(model.names, params, {parameter.name: side}, limits, ranges)
+                end = parameter.limits and parameter.limits[side == "upper"]
+                if end is not None and end == bound:
+                    assert "no wider bound exists" in note and "--bound" not in note, note
+                elif "--bound" in note and parameter.limits:
+                    assert "within its physical range" in note, note
+    names, limits = get("ross-li").names, {n: (0.0, float("inf")) for n in get("ross-li").names}
+    at_zero, = bound_notes(names, (0.055, 0.08, 0.0), {"f_geo": "lower"}, limits,
+                           {n: (0.0, 10.0) for n in names})
+    assert at_zero.endswith("the end of its physical range (0 and above): the data ask for "
+                            "more than the model can give there; no wider bound exists")
+    inside, = bound_notes(names, (0.055, 0.08, 0.1), {"f_geo": "lower"}, limits,
+                          {"f_iso": (0.0, 10.0), "f_vol": (0.0, 10.0), "f_geo": (0.1, 10.0)})
+    assert inside.endswith("--bound f_geo=LO:HI (within its physical range, 0 and above)")
+    assert main(["fit", str(DATA / "synthetic" / "white_paint.csv"), "--model", "ross-li",
+                 "--bound", "f_vol=-1:1"]) == 1
+    assert ("bound of f_vol: -1 to 1 leaves its physical range, 0 and above"
+            in capsys.readouterr().err)
+
+
 def test_a_bound_past_a_physical_limit_is_refused(capsys):
     """f0, a reflectance, lies within 0 to 1: a --bound past it is refused before any work,
     in every model that has it (a sum's second f0 too); inside it, taken."""
@@ -454,7 +508,7 @@ EC1 = REAL / "uaz-loft-rt300s" / "raw" / "ANOPLATE_AnoBlack_EC1_Alum6061_v1o0_20
 
 
 def test_a_sum_fits_with_its_parameter_names_and_intervals(tmp_path, capsys):
-    """--model A+B is a model like any other: MODELS.md's names in the JSON, Laplace intervals."""
+    """--model A+B is a model like any other: the sum's parameter names in the JSON, Laplace intervals."""
     out = tmp_path / "sum.json"
     assert main(["fit", str(EC1), "--model", "ggx+backscatter", "--json", str(out)]) == 0
     result = json.loads(out.read_text())

@@ -81,7 +81,7 @@ def test_every_sample_gets_its_single_fit(cube, reference):
     assert table["attr model"] == "five"
     assert [s.decode() for s in table["sample"]] == [f"pixel {k}" for k in range(COUNT)]
     status = table["status"].astype(str)
-    assert status[7] == "failed" and "no measurements" in table["message"][7].decode()
+    assert status[7] == "failed" and "has no readings" in table["message"][7].decode()
     assert np.isnan(table["error"][7]) and np.isnan(table["kb"][7])
     with Cube(cube) as opened:
         samples = opened.read(np.arange(COUNT))
@@ -141,6 +141,10 @@ def test_a_rerun_with_other_options_is_refused(cube, reference, tmp_path, capsys
     ("brdf 1-D", "brdf has shape (12,), not (N, P)"),
     ("phi_r wrong", "phi_r has shape (47,); brdf is (12, 48), so give (12, 48) or (48,)"),
     ("not hdf5", "cannot be read as HDF5"),
+    # each of the 12 samples failed on its own, with only "see message in out.h5", where
+    # fit refuses the same file at once (issue 47, defect 4)
+    ("radians", ("(the angles every sample shares): all zenith angles are at most 1.1519 "
+                 "deg (they look like radians; files hold degrees")),
 ])
 def test_a_bad_cube_is_one_clear_error(tmp_path, capsys, change, expected):
     from brdfjax.cli import main
@@ -151,6 +155,8 @@ def test_a_bad_cube_is_one_clear_error(tmp_path, capsys, change, expected):
     if change == "not hdf5":
         path.write_text("theta_i,theta_r,phi_r,brdf\n")
     else:
+        if change == "radians":
+            theta_i, theta_r, phi_r = np.radians([theta_i, theta_r, phi_r])
         write_cube(path, theta_i, theta_r, phi_r[:47] if change == "phi_r wrong" else phi_r,
                    brdf_values[:, 0] if change == "brdf 1-D" else brdf_values)
         if change == "drop theta_r":
@@ -159,6 +165,38 @@ def test_a_bad_cube_is_one_clear_error(tmp_path, capsys, change, expected):
     assert main(["batch", str(path), "--out", str(tmp_path / "out.h5")]) == 1
     said = capsys.readouterr().err.strip().splitlines()
     assert len(said) == 1 and str(path) in said[0] and expected in said[0], said
+
+
+def test_a_sample_of_few_readings_is_underdetermined_and_one_of_none_says_so(tmp_path, capsys):
+    """A sample with 118 of its 120 readings NaN came back converged with E = 4e-31, and one
+    with none was told "the file has a header but no data lines" (issue 47, defects 1 and
+    4): 2 readings for 5 parameters are underdetermined in the status column, with why, and
+    in the summary line; a sample without readings says so."""
+    from brdfjax.cli import main
+    from brdfjax.cluster import fit_chunk
+    from brdfjax.fitting.fit import UnderdeterminedWarning
+
+    path, out = tmp_path / "sparse.h5", tmp_path / "results.h5"
+    brdf_values = values(3)
+    brdf_values[1, 2:] = np.nan
+    brdf_values[2] = np.nan
+    write_cube(path, *geometry(), brdf_values)
+    assert main(command(path, out)[3:]) == 1  # the empty sample failed
+    said = capsys.readouterr().err
+    assert ("1 of 3 fitted; 1 underdetermined (no more distinct geometries than the 5 "
+            f"parameters of five: their parameters are not determined; status and message in "
+            f"{out}); 1 failed") in said, said
+    table = read(out)
+    assert [s.decode() for s in table["status"]][1:] == ["underdetermined", "failed"]
+    assert table["status"][0].decode() in ("converged", "max_steps")
+    messages = [m.decode() for m in table["message"]]
+    assert messages[1].startswith("underdetermined: 2 distinct geometries (theta_i, theta_r, "
+                                  "phi_r) for the 5 parameters of five")
+    assert messages[2] == ("sparse.h5[2]: the sample has no readings (every reading is NaN or "
+                           "none was given: nothing to fit)")
+    with Cube(path) as cube, pytest.warns(UnderdeterminedWarning, match="samples with no more"):
+        summaries = fit_chunk(cube.read([0, 1, 2]), SMALL)  # as with --uncertainty: the same
+    assert [s["status"] for s in summaries][1:] == ["underdetermined", "failed"]
 
 
 def test_per_sample_geometry_reads_each_row(tmp_path):
@@ -221,7 +259,7 @@ def test_a_block_with_uncertainty_keeps_its_fits_and_adds_their_std(cube):
     (the Laplace approximation needs them): the same numbers as the table formed at once (E to
     rounding),
     with each fitted sample's standard deviations, and none for the failed one."""
-    from brdfjax.fitting.cluster import fit_chunk, fit_cube_chunk
+    from brdfjax.cluster import fit_chunk, fit_cube_chunk
 
     with Cube(cube) as opened:
         samples = opened.read([0, 7])

@@ -6,6 +6,7 @@ import os
 import re
 import subprocess
 import sys
+from pathlib import Path
 
 import griffe
 import pytest
@@ -100,3 +101,22 @@ def test_cli_help_and_code_blocks_are_not_cut_on_the_right():
     css = (REPO / "docs" / "stylesheets" / "extra.css").read_text()
     assert re.search(r"pre > code[^{]*\{[^}]*white-space: pre-wrap", css)
     assert re.search(r"jupyter-wrapper\) \.md-sidebar--secondary \{\s*display: none", css)
+
+
+def test_no_page_or_docstring_cites_a_file_the_project_does_not_have():
+    """Eight docstrings, six of them on the Models page, cited "MODELS.md", a file no clone
+    has (issue 47, defect 5): they cite the papers and the docs' own pages instead."""
+    sys.path.insert(0, str(REPO / "docs"))
+    try:
+        import hooks
+    finally:
+        sys.path.remove(str(REPO / "docs"))
+    missing = "MODELS" + ".md"
+    assert missing not in hooks.models_markdown()
+    files = [REPO / "README.md", *(REPO / "docs").glob("*.md"),
+             *(REPO / "brdfjax").rglob("*.py"), *(REPO / "tests").glob("*.py"),
+             *(REPO / "benchmarks").glob("*.py")]
+    citing = [str(path.relative_to(REPO)) for path in files
+              if missing in path.read_text(encoding="utf-8") and path != Path(__file__)]
+    assert citing == []
+    assert not (REPO / missing).exists()

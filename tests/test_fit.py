@@ -482,3 +482,32 @@ def test_arguments_of_the_wrong_shape_or_order_are_said(white_paint):
                  max_steps=5)
     with pytest.raises(TypeError, match=r"the measurements come first, then the fit"):
         laplace_approximation(result, white_paint)
+
+
+def test_no_more_geometries_than_parameters_is_underdetermined_not_converged():
+    """Two readings fitted by GGX's four parameters were reported ``converged`` (E of
+    4.6e-27 %, ks = 363; issue 47, defect 1). Geometries are counted once however often
+    they are read, with phi_r folded into 0..180 deg and no azimuth at theta_r = 0; a fit
+    of no more of them than free parameters is ``underdetermined``, says why and warns."""
+    from brdfjax.data.measurements import Measurements
+    from brdfjax.fitting.fit import UnderdeterminedWarning, distinct_geometries, settled
+
+    five = get("five")
+    points = Measurements.from_degrees(
+        np.full(8, 30.0), [20, 20, 20, 20, 20, 20, 0, 0], [0, 0, 360, 30, -30, 330, 0, 90],
+        np.full(8, 0.1))
+    assert distinct_geometries(points) == 3  # (20, 0), (20, 30) and the normal
+    assert settled("converged", 5, five) == "underdetermined"
+    assert settled("max_steps", 5, five) == "underdetermined"
+    assert settled("converged", 6, five) == "converged" and settled("failed", 1, five) == "failed"
+    assert list(settled(np.array(["converged", "failed", "max_steps"]), np.array([2, 2, 9]),
+                        five)) == ["underdetermined", "failed", "max_steps"]
+    # Lambert's one parameter: one geometry read twice fits exactly and says nothing
+    twice = Measurements.from_degrees([30.0, 30.0], [20.0, 20.0], [0.0, 0.0], [0.1, 0.1])
+    with pytest.warns(UnderdeterminedWarning, match="1 distinct geometry .* for the 1 "
+                                                     "parameters of lambert"):
+        alone = fit(twice, model="lambert")
+    assert alone.status == "underdetermined" and "a small E proves nothing" in alone.message
+    assert alone.to_dict()["status"] == "underdetermined"
+    two = Measurements.from_degrees([30.0, 30.0], [20.0, 40.0], [0.0, 0.0], [0.1, 0.12])
+    assert fit(two, model="lambert").status == "converged"

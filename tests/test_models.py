@@ -1,4 +1,4 @@
-"""Every model of the family: against a transcription of MODELS.md, finite on its whole
+"""Every model of the family: against a transcription of its formula, finite on its whole
 domain, exact linear solves, its reflectance, and fits that recover it."""
 
 import functools
@@ -51,7 +51,7 @@ def test_every_model_has_examples_and_the_default_comes_first():
 
 
 def test_sums_follow_the_naming_and_shared_constant_rules():
-    """MODELS.md's parameter orders, kd kept once, and refusals with a reason."""
+    """The sums' parameter orders (`brdfjax.models.sum`), kd kept once, and refusals with a reason."""
     assert get("ggx+backscatter").names == ("ks", "alpha", "f0", "kd", "kb", "beta")
     assert get("ggx+ggx").names == ("ks", "alpha", "f0", "kd", "ks_2", "alpha_2", "f0_2")
     assert get("abg+lambert").names == ("A", "B", "g", "kd")
@@ -66,6 +66,54 @@ def test_sums_follow_the_naming_and_shared_constant_rules():
         get("auto")  # the command line's word, said where it is taken
     with pytest.raises(ValueError, match="unknown model 'nope'"):
         get("ggx+nope")
+
+
+INF = float("inf")
+# Each parameter's physical range, from what its model says of it (None: any value): weights,
+# albedos and levels >= 0; widths, roughnesses and axis ratios > 0 (log10 keeps a positive
+# floor); a reflectance 0 to 1; a refractive index >= 1; HG's asymmetry -1 to 1; RPV's
+# rhoc <= 2 (H >= 0 at the hot spot); ABg's fall-off power >= 0.
+PHYSICAL = {
+    "five": {"kb": (0, INF), "kr": (0, INF), "a": (0, INF), "b": None, "kd": (0, INF)},
+    "torrance-sparrow": {"g": (0, INF), "c": (0, INF), "n": (1, INF), "rho0": (0, INF)},
+    "ggx": {"ks": (0, INF), "alpha": (0, INF), "f0": (0, 1), "kd": (0, INF)},
+    "beckmann": {"ks": (0, INF), "alpha": (0, INF), "f0": (0, 1), "kd": (0, INF)},
+    "lambert": {"kd": (0, INF)},
+    "rpv": {"rho0": (0, INF), "k": None, "asymmetry": (-1, 1), "rhoc": (-INF, 2)},
+    "backscatter": {"kb": (0, INF), "beta": (0, INF)},
+    "abg": {"A": (0, INF), "B": (0, INF), "g": (0, INF)},
+    "ross-li": {"f_iso": (0, INF), "f_vol": (0, INF), "f_geo": (0, INF)},
+}
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_every_physical_range_is_a_limit_no_bound_may_pass(name):
+    """Ross-Li's --bound f_vol=-1:1 was taken and gave f_vol = -0.073, while f0=0:2 was
+    refused (issue 47, defect 3): every parameter with a physical range has it as its
+    limits, in its model's file; the default box lies inside, and a bound past either end
+    is refused with the range and its reason, in a sum's parts as in the model alone."""
+    model = get(name)
+    expected = {}
+    for part in name.split("+"):
+        expected.update({k + ("_2" if k in expected else ""): v
+                         for k, v in PHYSICAL[part].items()})
+    assert {p.name: p.limits for p in model.parameters} == {
+        k: v for k, v in expected.items() if k in model.names}
+    box = default_bounds(model)
+    for k, p in enumerate(model.parameters):
+        if p.limits is None:
+            continue
+        assert p.limits[0] <= box.lower[k] < box.upper[k] <= p.limits[1]
+        for side, end in enumerate(p.limits):
+            if np.isfinite(end):
+                past = (end - 1.0, box.upper[k]) if side == 0 else (box.lower[k], end + 1.0)
+                with pytest.raises(ValueError, match=rf"bound of {p.name}: .* leaves its "
+                                                     r"physical range, .*; give a range"):
+                    brdfjax.make_bounds({p.name: past}, scales={p.name: "linear"}, model=model)
+    if name == "ross-li":
+        with pytest.raises(ValueError, match=r"bound of f_vol: -1 to 1 leaves its physical "
+                                             r"range, 0 and above \(RossThick"):
+            brdfjax.make_bounds({"f_vol": (-1.0, 1.0)}, model=model)
 
 
 def test_parameters_are_evaluated_by_their_own_model_or_refused():

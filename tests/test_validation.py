@@ -42,7 +42,7 @@ def test_folds_hold_out_each_incidence_and_score_it_independently(ggx_data, ggx_
     assert [f.interior for f in folds] == [False, True, True, True, False]
     for fold in folds:
         held = ggx_data.select(np.round(np.degrees(ggx_data.theta_i), 6) == fold.low)
-        # E of Eq. (6) on the held-out incidence, from the transcription of MODELS.md
+        # E of Eq. (6) on the held-out incidence, from the models' transcription
         model = transcription.ggx(*fold.params, held.theta_i, held.theta_r, held.phi_r)
         y, m = held.brdf * np.cos(held.theta_r), model * np.cos(held.theta_r)
         assert fold.held_error == pytest.approx(np.sum((m - y) ** 2) / np.sum(y**2), rel=1e-9)

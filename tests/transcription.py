@@ -1,4 +1,5 @@
-"""Line-by-line numpy transcriptions of the paper's Eq. (1)-(5) and of ``MODELS.md``.
+"""Line-by-line numpy transcriptions of the paper's Eq. (1)-(5) and of the other models'
+formulas as their modules' docstrings (the docs' Models page) state them.
 
 Independent of brdfjax's rearranged formulas: valid at generic points only (they divide by
 zero at the specular point and at grazing angles, exactly where the printed forms break).
@@ -64,7 +65,7 @@ def brdf(kb, kr, a, b, kd, ti, tr, pr, constants=PAPER_CONSTANTS):
 
 
 def torrance_sparrow(g, c, n, rho0, ti, tr, pr):
-    """The paper's Eq. (2) as MODELS.md writes it out."""
+    """The paper's Eq. (2) written out."""
     G, _, _ = shadowing(ti, tr, pr)
     cos_th, cos_td = half_vector(ti, tr, pr)
     th = np.arccos(cos_th)
@@ -120,7 +121,7 @@ def rpv(rho0, k, asymmetry, rhoc, ti, tr, pr):
 
 
 def cos_phase(ti, tr, pr):
-    """cos g = w_i . w_r, as MODELS.md writes it."""
+    """cos g = w_i . w_r, as the Ross-Li and back-scatter docstrings write it."""
     return np.cos(ti) * np.cos(tr) + np.sin(ti) * np.sin(tr) * np.cos(pr)
 
 
@@ -149,7 +150,7 @@ def ross_li(f_iso, f_vol, f_geo, ti, tr, pr, h_b=2.0):
     return (f_iso + f_vol * k_vol + f_geo * k_geo) / np.pi
 
 
-# Sums by MODELS.md's naming rule, the shared kd once, in the first part.
+# Sums by brdfjax's naming rule (`brdfjax.models.sum`), the shared kd once, in the first part.
 def ggx_backscatter(ks, alpha, f0, kd, kb, beta, ti, tr, pr):
     return ggx(ks, alpha, f0, kd, ti, tr, pr) + backscatter(kb, beta, ti, tr, pr)
 

@@ -186,7 +186,7 @@ def result_options(args, model) -> dict:
     """
     from brdfjax.commands.fitting import parse_bounds
     from brdfjax.fitting.batch import FIT_DEFAULTS
-    from brdfjax.fitting.bounds import make_bounds
+    from brdfjax.models.bounds import make_bounds
 
     box = make_bounds(parse_bounds(args.bound), model=model)
     return {"model": model.name, "seed": args.seed,
@@ -201,7 +201,7 @@ def result_options(args, model) -> dict:
 
 
 def fit_options(args, model) -> dict:
-    """The keyword arguments of `brdfjax.fitting.cluster.fit_chunk` for every chunk."""
+    """The keyword arguments of `brdfjax.cluster.fit_chunk` for every chunk."""
     from brdfjax.commands.fitting import parse_bounds
 
     return {"seed": args.seed, "ranges": parse_bounds(args.bound), "model": model.name,
@@ -341,7 +341,7 @@ def run_batch(args) -> int:
     if args.model != "auto":
         get(args.model)  # an unknown name fails before any file is read
     if args.scheduler is not None:
-        from brdfjax.fitting.cluster import require_dask
+        from brdfjax.cluster import require_dask
 
         require_dask()  # before any file is read
     if cube:
@@ -381,7 +381,7 @@ def run_batch(args) -> int:
               + (f" ({len(failed)} that failed before, tried again)" if failed else ""),
               file=sys.stderr)
     if not pending:
-        return _summary(rows, files, [])
+        return _summary(rows, files, [], model, args.out)
     if devices:  # said before the bar opens, so it is not drawn through it
         print(f"fitting on {len(devices)} {devices[0].platform} device(s)", file=sys.stderr)
 
@@ -419,7 +419,7 @@ def run_batch(args) -> int:
     if args.plot:
         _plot_spectral(args.plot, [rows[key] for key in files if key in rows], model.names)
         print(f"wrote {args.plot}", file=sys.stderr)
-    return _summary(rows, files, lost)
+    return _summary(rows, files, lost, model, args.out)
 
 
 def run_cube(args) -> int:
@@ -493,9 +493,19 @@ def run_cube(args) -> int:
                          f"(rerun to fit them): {'; '.join(lost)}")
     print(f"{counts['converged'] + counts['max_steps']} of {cube.count} fitted"
           + (f" ({counts['max_steps']} stopped at the LM step cap)" if counts["max_steps"]
-             else "") + (f"; {counts['failed']} failed (see message in {args.out})"
-                         if counts["failed"] else ""), file=sys.stderr)
+             else "") + underdetermined_text(counts["underdetermined"], model, args.out)
+          + (f"; {counts['failed']} failed (see message in {args.out})"
+             if counts["failed"] else ""), file=sys.stderr)
     return 1 if counts["failed"] else 0
+
+
+def underdetermined_text(count: int, model, out) -> str:
+    """The summary's words on ``count`` underdetermined samples ("" for none)."""
+    if not count:
+        return ""
+    return (f"; {count} underdetermined (no more distinct geometries than the "
+            f"{model.size} parameters of {model.name}: their parameters are not determined; "
+            f"status and message in {out})")
 
 
 def spectral_request(text):
@@ -638,7 +648,7 @@ def _fit_chunks(chunks, scheduler, options, record, cube: bool = False) -> list:
         The errors of chunks the cluster could not fit (nothing is recorded for them, so
         a rerun fits them again).
     """
-    from brdfjax.fitting.cluster import fit_chunk, fit_cube_chunk, fit_on_cluster
+    from brdfjax.cluster import fit_chunk, fit_cube_chunk, fit_on_cluster
 
     task = fit_cube_chunk if cube else fit_chunk
     if scheduler is None:
@@ -671,14 +681,16 @@ def _write_json(directory, batch: dict) -> None:
                          json_text({**record, **result}))
 
 
-def _summary(rows: dict, files, lost) -> int:
-    """Print what failed and why; 1 if anything failed, else 0."""
+def _summary(rows: dict, files, lost, model, out) -> int:
+    """Print what failed and why, and how many fits are underdetermined; 1 if anything
+    failed, else 0."""
     done = [f for f in files if f in rows]
     failed = [(f, rows[f]["message"]) for f in done if rows[f]["status"] == "failed"]
     capped = sum(rows[f]["status"] == "max_steps" for f in done)
-    print(f"{len(done) - len(failed)} of {len(files)} fitted"
-          + (f" ({capped} stopped at the LM step cap: see their message)" if capped else ""),
-          file=sys.stderr)
+    short = sum(rows[f]["status"] == "underdetermined" for f in done)
+    print(f"{len(done) - len(failed) - short} of {len(files)} fitted"
+          + (f" ({capped} stopped at the LM step cap: see their message)" if capped else "")
+          + underdetermined_text(short, model, out), file=sys.stderr)
     if failed:
         print(f"{len(failed)} failed:", file=sys.stderr)
         for file, message in failed:

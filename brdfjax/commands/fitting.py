@@ -182,7 +182,7 @@ def held_out(data, args) -> list:
 def run_fit(args) -> None:
     from brdfjax.cache import enable
     from brdfjax.data.formats import load
-    from brdfjax.fitting.bounds import make_bounds
+    from brdfjax.models.bounds import make_bounds
     from brdfjax.uncertainty.mcmc import inline_dispatch
 
     inline_dispatch()  # one device and many small calls (emcee): no worker-thread hand-off
@@ -278,8 +278,8 @@ def run_per_incidence(data, args) -> None:
     """``--per-incidence``: each incidence fitted on its own, in one batched call; with
     ``--model abg`` the TIS checks, FRED's parameters and the Zemax catalog entry."""
     from brdfjax.data.formats import json_text, write_atomically
-    from brdfjax.fitting.bounds import make_bounds
     from brdfjax.models import get
+    from brdfjax.models.bounds import make_bounds
     from brdfjax.prediction.cross_validation import fit_per_incidence
 
     model = get(args.model)
@@ -296,10 +296,11 @@ def run_per_incidence(data, args) -> None:
                              bounds=make_bounds(parse_bounds(args.bound), model=model))
     print(f"{data.name}: {len(data)} points, {model.name} fitted at each of {len(fits)} "
           "incidences on its own")
-    print(f"  {'incidence':>9}  {'E (%)':>8}  {'status':<9} " + " ".join(
+    width = max(len(result.status) for _, result in fits) if fits else 9
+    print(f"  {'incidence':>9}  {'E (%)':>8}  {'status':<{width}} " + " ".join(
         f"{name:>12}" for name in model.names))
     for degrees, result in fits:
-        print(f"  {degrees:9g}  {100 * result.error:8.4g}  {result.status:<9} "
+        print(f"  {degrees:9g}  {100 * result.error:8.4g}  {result.status:<{width}} "
               + " ".join(f"{v:12.5g}" for v in result.vector))
     payload = {"model": model.name, "per_incidence": [
         {"incidence_deg": degrees, **result.to_dict()} for degrees, result in fits]}
@@ -506,8 +507,9 @@ def estimate_uncertainty(result, data, args):
     """
     if args.uncertainty == "none":
         return None
-    if result.status == "failed":
-        print("uncertainty: none, the fit failed")
+    if result.status in ("failed", "underdetermined"):
+        print("uncertainty: none, the fit "
+              + ("failed" if result.status == "failed" else "is underdetermined"))
         return None
     from brdfjax.uncertainty.result import UncertaintyWarning
 
@@ -745,7 +747,7 @@ def poor_incidences(errors: dict, overall: float) -> list[float]:
 
 def summary(result, name: str) -> str:
     """A readable table of a `brdfjax.fitting.fit.FitResult`, with the reflectance of Eq. (9)."""
-    from brdfjax.fitting.bounds import to_unit
+    from brdfjax.models.bounds import to_unit
     from brdfjax.models.hemispherical import energy_warning, reflectance
 
     names = result.model.names
@@ -779,13 +781,15 @@ def summary(result, name: str) -> str:
         lines.append(f"  warning: {warning}")
     times = ", ".join(f"{k} {v * 1e3:.0f} ms" for k, v in result.timings.items())
     lines.append(f"  {result.evaluations} model evaluations; {times}")
-    if result.at_bounds:
+    if result.at_bounds and result.status != "underdetermined":  # its warning says it all
         unit = np.asarray(to_unit(result.vector, result.bounds))
         sides = {name: "lower" if unit[result.model.index(name)] < 0.5 else "upper"
                  for name in result.at_bounds}
         limits = {p.name: p.limits for p in result.model.parameters if p.limits}
+        box = dict(zip(result.model.names, zip(np.asarray(result.bounds.lower).tolist(),
+                                               np.asarray(result.bounds.upper).tolist())))
         lines += [f"  note: {text}" for text in
-                  bound_notes(result.model.names, result.params, sides, limits)]
+                  bound_notes(result.model.names, result.params, sides, limits, box)]
     return "\n".join(lines)
 
 
@@ -794,7 +798,8 @@ def summary(result, name: str) -> str:
 SCALE_PARAMETERS = ("kb", "kd")
 
 
-def bound_notes(names, params, at_bounds: dict, limits: dict | None = None) -> list[str]:
+def bound_notes(names, params, at_bounds: dict, limits: dict | None = None,
+                box: dict | None = None) -> list[str]:
     """What a parameter at the edge of the search box means, and whether to widen the box.
 
     Args:
@@ -802,7 +807,10 @@ def bound_notes(names, params, at_bounds: dict, limits: dict | None = None) -> l
         params: the fitted values.
         at_bounds: ``{name: "lower" or "upper"}`` for each parameter at an edge.
         limits: ``{name: (low, high)}``, the physical range of the parameters that have one
-            (`brdfjax.models.base.Parameter.limits`): at it, no wider box exists.
+            (`brdfjax.models.base.Parameter.limits`): at it, no wider box exists, and a
+            wider box is offered only within it.
+        box: ``{name: (low, high)}``, the search box: a parameter is at the end of its
+            physical range where its bound is (without, where its value is within 1e-6).
 
     Returns:
         One sentence per parameter (or degenerate pair). The hint to widen with ``--bound``
@@ -813,8 +821,17 @@ def bound_notes(names, params, at_bounds: dict, limits: dict | None = None) -> l
         both along that valley without improving the fit (on the EC1 coating, kb from 1e-14
         to 1.1e-30 moved E from 1.704 % to 1.699 %; issue 15).
     """
+    from brdfjax.models.base import limits_text
+
     values, limits = dict(zip(names, params)), limits or {}
     notes = []
+
+    def at_limit(name, side):
+        end = limits[name][side == "upper"]
+        if box is not None:
+            return box[name][side == "upper"] == end
+        return bool(np.isclose(values[name], end, rtol=1e-6, atol=1e-6))
+
     for name, side in at_bounds.items():
         value = values[name]
         if name == "kb" and side == "lower" and "b" in values and values["b"] > 0:
@@ -826,14 +843,13 @@ def bound_notes(names, params, at_bounds: dict, limits: dict | None = None) -> l
         elif name in SCALE_PARAMETERS and side == "lower":
             notes.append(f"{name} = {value:.3g} at its lower bound: its term is negligible "
                          "for these data; widening the bound cannot lower E")
-        elif name in limits and np.isclose(value, limits[name][side == "upper"],
-                                           rtol=1e-6, atol=1e-6):
+        elif name in limits and at_limit(name, side):
             notes.append(f"{name} = {value:.3g} at its {side} bound, the end of its physical "
-                         f"range ({limits[name][0]:g} to {limits[name][1]:g}): the data ask "
-                         "for more than the model can give there; no wider bound exists")
+                         f"range ({limits_text(limits[name])}): the data ask for more than "
+                         "the model can give there; no wider bound exists")
         else:
-            within = (f" (within its physical range, {limits[name][0]:g} to "
-                      f"{limits[name][1]:g})" if name in limits else "")
+            within = (f" (within its physical range, {limits_text(limits[name])})"
+                      if name in limits else "")
             notes.append(f"{name} = {value:.3g} at its {side} bound: the best fit may lie "
                          f"beyond it; widen it with --bound {name}=LO:HI{within}")
     return notes

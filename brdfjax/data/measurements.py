@@ -280,6 +280,8 @@ def checked(data, what: str, geometry_only: bool = False) -> Measurements:
     except ValueError as problem:
         raise DataError(f"{problem} (Measurements.from_degrees takes degrees)",
                         data.path) from None
+    if len(data) == 0:
+        raise DataError(NO_READINGS[1], data.path, None, NO_READINGS[2])
     return validate(data, data.path, geometry_only=geometry_only)
 
 
@@ -299,7 +301,7 @@ def failures(samples) -> dict[int, str]:
     for (points, *_), positions in groups.items():
         rows = [samples[p] for p in positions]
         if points == 0:
-            problems = dict.fromkeys(range(len(rows)), NO_POINTS)
+            problems = dict.fromkeys(range(len(rows)), NO_READINGS)
         else:
             arrays = {name: np.stack([getattr(data, name) for data in rows])
                       for name, values in rows[0]._arrays().items() if values is not None}
@@ -309,8 +311,12 @@ def failures(samples) -> dict[int, str]:
     return found
 
 
-# The problem of a measurement set without points, as `_problems` gives the others'.
+# The problem of a measurement set without points, as `_problems` gives the others': read
+# from a file (`validate`), and a sample of many (`failures`: a cube's pixel whose every
+# reading is NaN) or built in Python (`checked`), which has no lines.
 NO_POINTS = (None, "no measurements", "the file has a header but no data lines")
+NO_READINGS = (None, "the sample has no readings",
+               "every reading is NaN or none was given: nothing to fit")
 
 
 def _problems(arrays: dict, geometry_only: bool = False) -> dict[int, tuple]:

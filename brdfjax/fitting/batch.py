@@ -69,6 +69,7 @@ import hashlib
 import inspect
 import os
 import time
+import warnings
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from functools import partial
@@ -80,16 +81,20 @@ import numpy as np
 
 from brdfjax.cache import stage
 from brdfjax.data.measurements import Measurements, failures
-from brdfjax.fitting.bounds import Bounds, default_bounds, to_unit
 from brdfjax.fitting.evolve import EvolveConfig, EvolveResult, evolve
 from brdfjax.fitting.fit import (
+    STATUSES,
     FitResult,
+    UnderdeterminedWarning,
     check_bounds,
+    distinct_geometries,
     fit,
     fit_result,
     polish_summary,
     search_summary,
+    settled,
     solved_fit,
+    status_message,
 )
 from brdfjax.fitting.objective import (
     NOTHING_TO_FIT,
@@ -102,6 +107,7 @@ from brdfjax.fitting.objective import (
 )
 from brdfjax.fitting.polish import PolishResult, polish_population, resume
 from brdfjax.models import Model, get
+from brdfjax.models.bounds import Bounds, default_bounds, to_unit
 from brdfjax.models.paper import evaluate_projected
 
 # The single fit's own defaults, read from its signature: a batched fit is the fit that
@@ -136,8 +142,10 @@ def fit_batch(samples: Sequence[Measurements], *, model: str | Model | None = No
     """Fit a model to every sample of a batch, one compiled call per chunk.
 
     Each sample gets the fit that ``brdfjax.fit(sample, model=model, seed=seed)`` gives it (hybrid
-    method, no held-out incidences) and its own status: ``converged``, ``max_steps`` or
-    ``failed``, with `FitResult.message` saying why where there is more to say. Bad data
+    method, no held-out incidences) and its own status: ``converged``, ``max_steps``,
+    ``underdetermined`` (no more distinct geometries than parameters: the rule of
+    `brdfjax.fitting.fit.settled`, with one `UnderdeterminedWarning` whatever their number)
+    or ``failed``, with `FitResult.message` saying why where there is more to say. Bad data
     (NaN, no measurements, ...) make that sample ``failed`` with the `DataError` text; the
     other samples are fitted as if it were not there.
 
@@ -146,7 +154,7 @@ def fit_batch(samples: Sequence[Measurements], *, model: str | Model | None = No
         model: a name of `brdfjax.models.available` or a `brdfjax.models.Model` (the
             five-parameter model if None).
         seed: one seed for every sample, or one per sample.
-        bounds: the search box (the model's `brdfjax.fitting.bounds.default_bounds` if None).
+        bounds: the search box (the model's `brdfjax.models.bounds.default_bounds` if None).
         chunk_size: at most this many samples per compiled call; bounds the memory,
             which grows with it where samples run side by side (``search_batch`` or
             ``polish_batch`` None or large).
@@ -191,10 +199,10 @@ def fit_batch(samples: Sequence[Measurements], *, model: str | Model | None = No
     resumed_steps = 0  # the convergence round's steps left to the slow lanes' second batch
     if side_by_side and options["max_steps"] > LANE_STEPS:
         settings["max_steps"], resumed_steps = LANE_STEPS, options["max_steps"] - LANE_STEPS
-    chunks = _chunk_fits(samples, model, seeds, bounds, config, devices, chunk_size, settings,
-                         resumed_steps)
+    chunks = _warned(_chunk_fits(samples, model, seeds, bounds, config, devices, chunk_size,
+                                 settings, resumed_steps), model)
     if table:
-        return _table(chunks, len(samples), model, options["max_steps"])
+        return _table(chunks, len(samples), model)
     results: list[FitResult | None] = [None] * len(samples)
     for chunk in chunks:
         for index, message in chunk.failed.items():
@@ -205,8 +213,24 @@ def fit_batch(samples: Sequence[Measurements], *, model: str | Model | None = No
                 samples[index], searched[lane], polished[lane], chunk.params[lane],
                 chunk.status[lane], chunk.evaluations[lane], chunk.fitted[lane],
                 chunk.units[lane], options["population_size"],
-                chunk.seconds / len(chunk.indices), options["max_steps"], bounds, model)
+                chunk.seconds / len(chunk.indices), chunk.messages[lane], bounds, model)
     return results
+
+
+def _warned(chunks, model: Model):
+    """The chunks of `_chunk_fits`, passed on; one `UnderdeterminedWarning` after them
+    where any sample was ``underdetermined`` (one, not one per sample: a cube of 1e5
+    samples would print thousands)."""
+    count = 0
+    for chunk in chunks:
+        if chunk.status is not None:
+            count += int(np.sum(chunk.status == "underdetermined"))
+        yield chunk
+    if count:
+        warnings.warn(f"samples with no more distinct geometries (theta_i, theta_r, phi_r) "
+                      f"than the {model.size} parameters of {model.name} are underdetermined: "
+                      "their parameters are one of many sets that fit as well (their status "
+                      "and message say so)", UnderdeterminedWarning, stacklevel=3)
 
 
 class BatchTable(NamedTuple):
@@ -217,7 +241,7 @@ class BatchTable(NamedTuple):
     Attributes:
         params: (N, P) fitted parameters (NaN where the data failed their checks).
         error: (N,) E of Eq. (6), a fraction.
-        status: (N,) ``converged``, ``max_steps`` or ``failed``.
+        status: (N,) ``converged``, ``max_steps``, ``underdetermined`` or ``failed``.
         message: (N,) why the status, where there is more to say ("" elsewhere).
     """
 
@@ -232,8 +256,10 @@ class _ChunkFit(NamedTuple):
     samples that failed their checks (``failed``, index: the reason), the fitted ones'
     batched search and polish (host arrays, leading axis the samples), the polish's
     `polish_summary` (``params``, ``status``, ``evaluations``; ``params`` as reported,
-    `brdfjax.models.Model.canonical`), the fitted projected BRDF and unit-cube coordinates
-    (`_fitted`), the padded chunk (`_run_chunk`) and its wall seconds."""
+    `brdfjax.models.Model.canonical`; ``status`` `settled`: ``underdetermined`` where a sample
+    has too few geometries), the fitted projected BRDF and unit-cube coordinates
+    (`_fitted`), the padded chunk (`_run_chunk`), its wall seconds and each fitted sample's
+    `FitResult.message`."""
 
     indices: list
     failed: dict
@@ -246,6 +272,7 @@ class _ChunkFit(NamedTuple):
     units: np.ndarray | None = None
     padded: Problem | None = None
     seconds: float = 0.0
+    messages: list | None = None
 
 
 def _chunk_fits(samples, model, seeds, bounds, config, devices, chunk_size, settings,
@@ -290,9 +317,15 @@ def _chunk_fits(samples, model, seeds, bounds, config, devices, chunk_size, sett
         if resumed_steps and model.searched_size:
             polished = _resume_slow(polished, padded, bounds, devices[0], resumed_steps)
         best, status, evaluations = polish_summary(polished)
+        # Counted once per geometry, as the scenes are: a cube's samples share one.
+        geometries = {key: distinct_geometries(samples[i]) for key, i in distinct.items()}
+        counts = np.array([geometries[keys[i]] for i in indices])
+        status = settled(status, counts, model)
+        messages = [status_message(s, settings["max_steps"] + resumed_steps, n, model)
+                    for s, n in zip(status, counts)]
         params, fitted, units = _fitted(best, padded, bounds)
         yield _ChunkFit(indices, failed, searched, polished, params, status, evaluations,
-                        fitted, units, padded, time.perf_counter() - tic)
+                        fitted, units, padded, time.perf_counter() - tic, messages)
 
 
 def _chunk_targets(samples: list, points: int) -> tuple[np.ndarray, ...]:
@@ -353,11 +386,12 @@ def _geometries(model: Model, theta_i, theta_r, phi_r, *, in_plane: bool):
     return jax.vmap(lambda *angles: model.geometry(*angles, in_plane))(theta_i, theta_r, phi_r)
 
 
-def _table(chunks, count: int, model: Model, max_steps: int) -> BatchTable:
+def _table(chunks, count: int, model: Model) -> BatchTable:
     """The `BatchTable` of `_chunk_fits`, each chunk's numbers formed at once: the E of
     `fit_result` (to rounding: there the weights are not normalised)."""
     table = BatchTable(np.full((count, model.size), np.nan), np.full(count, np.nan),
-                       np.full(count, "failed", dtype="U9"), np.full(count, "", dtype=object))
+                       np.full(count, "failed", dtype=f"U{max(map(len, STATUSES))}"),
+                       np.full(count, "", dtype=object))
     for chunk in chunks:
         table.message[list(chunk.failed)] = list(chunk.failed.values())
         if not chunk.indices:
@@ -369,7 +403,7 @@ def _table(chunks, count: int, model: Model, max_steps: int) -> BatchTable:
         table.error[chunk.indices] = (np.sum(weight * difference * difference, axis=1)
                                       / np.sum(weight * target * target, axis=1))
         table.status[chunk.indices] = chunk.status
-        table.message[chunk.indices] = [_status_message(s, max_steps) for s in chunk.status]
+        table.message[chunk.indices] = chunk.messages
     return table
 
 
@@ -448,24 +482,17 @@ def _failed(data: Measurements, message: str, bounds: Bounds, model: Model) -> F
 
 
 def _sample_result(data, searched, polished, best, status, lm_evaluations, fitted, unit,
-                   population_size, seconds, max_steps, bounds, model) -> FitResult:
+                   population_size, seconds, message, bounds, model) -> FitResult:
     """One sample's `FitResult` from its lanes of the batched search and polish, the
-    polish's `polish_summary` (``best``, ``status``, ``lm_evaluations``), and its fitted
-    projected BRDF and unit-cube coordinates (`_fitted`)."""
+    polish's `polish_summary` (``best``, ``status``, ``lm_evaluations``; the status
+    `settled`, with its ``message``), and its fitted projected BRDF and unit-cube
+    coordinates (`_fitted`)."""
     history, evaluations = search_summary(searched, population_size)
     return fit_result(data, data, None, best, bounds, model, fitted=fitted, unit=unit,
                       method="hybrid", status=str(status),
                       evaluations=evaluations + int(lm_evaluations),
                       lm_steps=polished.steps, lm_success=polished.success,
-                      timings={"total": seconds}, history=history,
-                      message=_status_message(status, max_steps))
-
-
-def _status_message(status: str, max_steps: int) -> str:
-    """`FitResult.message` of a fitted sample: why its status, where there is more to say."""
-    return {"max_steps": f"Levenberg-Marquardt stopped at its cap of {max_steps} steps "
-                         "before meeting its tolerance",
-            "failed": "no start reached a finite E"}.get(str(status), "")
+                      timings={"total": seconds}, history=history, message=message)
 
 
 def _run_chunk(scenes, rows, targets, weights, model: Model, seeds, bounds, config, devices,
@@ -669,7 +696,7 @@ def use_every_core() -> list:
 
 def single_threaded() -> None:
     """XLA:CPU without Eigen's threads, as every batch runs (`use_every_core`; a setting
-    given in ``XLA_FLAGS`` is kept). A Dask worker's chunk (`brdfjax.fitting.cluster`) so
+    given in ``XLA_FLAGS`` is kept). A Dask worker's chunk (`brdfjax.cluster`) so
     computes what the local batch computes: with Eigen's threads a matrix product's last
     bits differ, and a fit that branches on them can end at another step count. Acts only
     before JAX starts its backend (on a worker: before its first chunk)."""

@@ -1,7 +1,7 @@
 """Global search: a real-coded genetic algorithm in JAX, the whole run one compiled loop.
 
 The paper fits its five parameters with a genetic algorithm; this one searches the unit
-cube of `brdfjax.fitting.bounds` (log10 for the positive parameters, asinh for b) so that the
+cube of `brdfjax.models.bounds` (log10 for the positive parameters, asinh for b) so that the
 degenerate basins of real data are reachable. Only the parameters that enter f_r
 nonlinearly matter to the search ((kr, a, b) of the five-parameter model, alpha of GGX):
 every member gets the best linear ones (kb and kd) exactly (variable projection,
@@ -43,8 +43,8 @@ import jax
 import jax.numpy as jnp
 
 from brdfjax.cache import stage
-from brdfjax.fitting.bounds import Bounds, from_unit, to_unit
 from brdfjax.fitting.objective import Problem, solve_linear
+from brdfjax.models.bounds import Bounds, from_unit, to_unit
 
 BLEND_EXTENT = 0.5  # BLX-alpha with alpha = 0.5: children may land beyond either parent
 # Islands up to this size are ordered by counting (`ascending`): a chosen bound, not a

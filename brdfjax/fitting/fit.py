@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import threading
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import jax
@@ -22,7 +23,6 @@ import numpy as np
 
 from brdfjax.cache import stage
 from brdfjax.data.measurements import DataError, Measurements, checked, incidence_groups
-from brdfjax.fitting.bounds import Bounds, default_bounds, from_unit, to_free, to_unit
 from brdfjax.fitting.evolve import EvolveConfig, EvolveResult, check_population, evolve
 from brdfjax.fitting.objective import (
     Problem,
@@ -35,6 +35,7 @@ from brdfjax.fitting.objective import (
 )
 from brdfjax.fitting.polish import STARTS, PolishResult, polish, polish_population
 from brdfjax.models import Model, get
+from brdfjax.models.bounds import Bounds, default_bounds, from_unit, to_free, to_unit
 from brdfjax.models.paper import FIVE
 
 METHODS = ("hybrid", "ga", "lm")
@@ -44,6 +45,14 @@ METHODS = ("hybrid", "ga", "lm")
 # of 100 000 points repeats the same shape hundreds of times.
 DENSE_POINTS = 16384
 SEARCH_POINTS = 4096
+# Every status a fit can end with (`FitResult.status`).
+STATUSES = ("converged", "max_steps", "search_only", "underdetermined", "failed")
+# Angles (deg) that agree to this many decimals are one geometry (`distinct_geometries`).
+GEOMETRY_DECIMALS = 3
+
+
+class UnderdeterminedWarning(UserWarning):
+    """A fit of no more distinct geometries than free parameters (`underdetermined`)."""
 
 
 @dataclass
@@ -58,7 +67,10 @@ class FitResult:
         validation_by_incidence: E on each held-out incidence alone.
         residuals: the training residual vector (its squared norm is ``error``).
         status: ``converged``, ``max_steps`` (LM hit its step cap), ``failed`` (no finite
-            result), or ``search_only`` (the ``ga`` method does not polish).
+            result), ``search_only`` (the ``ga`` method does not polish), or
+            ``underdetermined``: the training points hold no more distinct geometries than
+            the model has parameters (`distinct_geometries`, `settled`), so the parameters
+            are one of many sets that fit them as well, whatever E says.
         at_bounds: names of parameters within 1e-6 of a bound (in unit-cube terms).
         evaluations: model evaluations of the whole data set (a Jacobian counts one per
             parameter).
@@ -162,7 +174,7 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
         model: a name of `brdfjax.models.available` or a `brdfjax.models.Model`.
         seed: seeds every random choice; the same seed gives the same result.
         validate_incidences_deg: incidence angles (deg) held out of the fit and scored after.
-        bounds: the search box (the model's `brdfjax.fitting.bounds.default_bounds` if None).
+        bounds: the search box (the model's `brdfjax.models.bounds.default_bounds` if None).
         start: for ``lm``, starting parameters (P,) or (S, P); random starts if None.
         starts: how many distinct GA members LM polishes (a multiple of the genetic
             search's 8 islands; besides the model's extra starts), or how many random starts
@@ -177,6 +189,10 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
 
     Returns:
         A `FitResult`.
+
+    Warns:
+        UnderdeterminedWarning: the training points hold no more distinct geometries than
+            the model has parameters; the status is then ``underdetermined``.
     """
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; choose one of {METHODS}")
@@ -245,11 +261,60 @@ def fit(data: Measurements, method: str = "hybrid", *, model: str | Model | None
         steps, success = np.asarray(polished.steps), np.asarray(polished.success)
         evaluations += lm_evaluations
     timings["total"] = time.perf_counter() - begin
+    geometries = distinct_geometries(train)
+    status = str(settled(status, geometries, model))
+    message = status_message(status, max_steps, geometries, model)
+    if status == "underdetermined":
+        warnings.warn(message, UnderdeterminedWarning, stacklevel=2)
     return fit_result(with_loss(data, loss), train, held, np.asarray(best, dtype=float),
                       bounds, model, loss=loss,
                       geometry=None if len(held) else prob.scene, method=method,
                       status=status, evaluations=evaluations, lm_steps=steps,
-                      lm_success=success, timings=timings, history=history)
+                      lm_success=success, timings=timings, history=history, message=message)
+
+
+def distinct_geometries(data: Measurements) -> int:
+    """How many distinct geometries the points of ``data`` hold: the distinct
+    (theta_i, theta_r, phi_r) in degrees rounded to `GEOMETRY_DECIMALS` decimals, with
+    phi_r folded into 0..180 deg (every model is isotropic: f_r depends on phi_r through
+    its cosine alone) and taken as 0 where theta_i or theta_r is 0 (the azimuth of a
+    normal direction means nothing). Repeated readings of one geometry count once: they
+    average noise but determine nothing more.
+    """
+    theta_i, theta_r, phi_r = (np.round(np.degrees(np.asarray(x, dtype=float)),
+                                        GEOMETRY_DECIMALS)
+                               for x in (data.theta_i, data.theta_r, data.phi_r))
+    phi_r = np.round(np.abs((phi_r + 180.0) % 360.0 - 180.0), GEOMETRY_DECIMALS)
+    phi_r = np.where((theta_i == 0) | (theta_r == 0), 0.0, phi_r)
+    return len(np.unique(np.stack([theta_i, theta_r, phi_r], axis=-1), axis=0))
+
+
+def settled(status, geometries, model: Model):
+    """The status a fit reports: ``underdetermined`` in place of any other but ``failed``
+    where ``geometries`` (`distinct_geometries` of the training points) are no more than
+    the model's free parameters (``model.size``: through P geometries a model of P
+    parameters can pass exactly, E = 0, with parameters the data do not choose). The one
+    rule for `fit` and every sample of `brdfjax.fitting.batch.fit_batch`; arrays of
+    statuses and counts give an array.
+    """
+    status = np.asarray(status).astype(object)
+    short = (np.asarray(geometries) <= model.size) & (status != "failed")
+    settled = np.where(short, "underdetermined", status)
+    return str(settled) if settled.ndim == 0 else settled.astype(f"U{max(map(len, STATUSES))}")
+
+
+def status_message(status: str, max_steps: int, geometries: int, model: Model) -> str:
+    """`FitResult.message`: why the status, where there is more to say ("" elsewhere)."""
+    if status == "underdetermined":
+        return (f"underdetermined: {geometries} distinct geometr"
+                f"{'y' if geometries == 1 else 'ies'} (theta_i, theta_r, phi_r) for the "
+                f"{model.size} parameters of {model.name} ({', '.join(model.names)}): a fit "
+                "needs more geometries than parameters, so these parameters are one of many "
+                "sets that fit the points as well, and a small E proves nothing; measure "
+                "more geometries, or fit a model of fewer parameters")
+    return {"max_steps": f"Levenberg-Marquardt stopped at its cap of {max_steps} steps "
+                         "before meeting its tolerance",
+            "failed": "no start reached a finite E"}.get(str(status), "")
 
 
 # The polish shapes compiled ahead in this process (`_polish_ahead`).
@@ -306,9 +371,9 @@ def solved_fit(prob: Problem, bounds: Bounds, max_generations: int = 40):
     """
     import jax.numpy as jnp
 
-    from brdfjax.fitting.bounds import to_free as free_of
     from brdfjax.fitting.evolve import EvolveResult
     from brdfjax.fitting.objective import solve_linear
+    from brdfjax.models.bounds import to_free as free_of
 
     dtype = prob.target.dtype
     bounds = Bounds(*(jnp.asarray(b, dtype) if k < 2 else jnp.asarray(b)

@@ -2,7 +2,7 @@
 
 `optimistix.LevenbergMarquardt` damps every coordinate alike, solving
 ``(J^T J + lambda I) step = -J^T r``. `brdfjax.fitting.polish` runs LM in the unconstrained
-coordinates ``u`` of `brdfjax.fitting.bounds` (``z = sigmoid(u)``), where a parameter whose best
+coordinates ``u`` of `brdfjax.models.bounds` (``z = sigmoid(u)``), where a parameter whose best
 value lies on a bound has a Jacobian column that shrinks like ``exp(-|u|)`` as it nears
 that bound. Next to the other columns that column's curvature is negligible against
 ``lambda``, so each step moves it by ``g / lambda`` only, and LM crawls towards the bound
@@ -21,8 +21,8 @@ descent, `MarquardtDescent`, and uses optimistix's `ClassicalTrustRegion` as
 far, which brings the crawl back.)
 
 A column that is exactly zero (a parameter that does not change the residuals) takes
-no step: its gradient is zero too. `brdfjax.fitting.bounds.from_free` clips ``u`` to
-±`brdfjax.fitting.bounds.SATURATED`, so a coordinate on a bound has an exactly zero column, not
+no step: its gradient is zero too. `brdfjax.models.bounds.from_free` clips ``u`` to
+±`brdfjax.models.bounds.SATURATED`, so a coordinate on a bound has an exactly zero column, not
 one so small that its scaled step would be enormous and never settle (without the clip,
 Torrance-Sparrow on a 02aeroglaze run ran to its 1000-step cap).
 

@@ -23,8 +23,8 @@ import numpy as np
 
 from brdfjax.cache import stage
 from brdfjax.data.measurements import Measurements
-from brdfjax.fitting.bounds import Bounds
 from brdfjax.models import Model
+from brdfjax.models.bounds import Bounds
 from brdfjax.models.paper import FIVE, evaluate, evaluate_projected
 
 

@@ -1,6 +1,6 @@
 """Local refinement: optimistix Levenberg-Marquardt from several good starting points.
 
-LM has no bounds, so it runs in the unconstrained coordinates ``u`` of `brdfjax.fitting.bounds`
+LM has no bounds, so it runs in the unconstrained coordinates ``u`` of `brdfjax.models.bounds`
 (``z = sigmoid(u)`` in the unit cube). It runs in two rounds:
 
 1. **Screening**: up to `SCREEN_STEPS` (20) steps of LM whose damping is the same in every
@@ -58,8 +58,8 @@ import jax.numpy as jnp
 from jax.custom_derivatives import SymbolicZero
 
 from brdfjax.cache import stage
-from brdfjax.fitting.bounds import Bounds, from_free, from_unit, to_free
 from brdfjax.fitting.objective import Problem, error, residuals
+from brdfjax.models.bounds import Bounds, from_free, from_unit, to_free
 
 # Relative and absolute step tolerances: float64 meets 1e-10 (noise-free data reach
 # E ~ 1e-20); float32 cannot meet tighter than about 1e-6 (at 1e-8 LM runs to its cap).

@@ -4,12 +4,15 @@
     |beta - beta0| = hypot(sin tr cos pr + sin ti, sin tr sin pr)
 
 ``beta - beta0`` is the 2-D difference of the projections on the surface plane of the
-scattered direction and of the specular one, which projects to ``(-sin ti, 0)``
-(MODELS.md, "Models added later"). The BRDF peaks at ``A / B`` in the specular direction
-and falls as ``|beta - beta0|^-g`` beyond a shoulder at ``|beta - beta0| = B^(1/g)``;
-``g = 0`` is a constant ``A / (B + 1)``.
+scattered direction and of the specular one, which projects to ``(-sin ti, 0)``: the
+direction cosines of Harvey's scatter theory (J. E. Harvey, "Light-scattering
+characteristics of optical surfaces", PhD dissertation, University of Arizona, 1976), in
+which stray-light programs define ABg (R. N. Pfisterer, "Approximated scatter models for
+stray light analysis", Optics & Photonics News 22(10), 2011). The BRDF peaks at ``A / B``
+in the specular direction and falls as ``|beta - beta0|^-g`` beyond a shoulder at
+``|beta - beta0| = B^(1/g)``; ``g = 0`` is a constant ``A / (B + 1)``.
 
-Where MODELS.md leaves a choice: ``x^g`` at ``x = |beta - beta0| = 0`` (the specular point) is
+Where the formula leaves a choice: ``x^g`` at ``x = |beta - beta0| = 0`` (the specular point) is
 taken as its limit, 0 for ``g > 0`` and 1 for ``g = 0``, with zero derivatives there
 (``g x^(g-1)`` is infinite at 0 for ``g < 1``; the code differentiates through
 ``exp((g/2) log x^2)`` only where ``x > 0``). Nothing divides by a cosine: 90 deg is inside
@@ -25,7 +28,7 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-from brdfjax.models.base import Parameter, ScaledShape, broadcast_angles
+from brdfjax.models.base import NON_NEGATIVE, Parameter, ScaledShape, broadcast_angles
 
 
 class ProjectedGeometry(NamedTuple):
@@ -56,11 +59,14 @@ class Abg(ScaledShape):
                "falling as a power of the projected distance; fit per incidence for export")
     parameters = (
         Parameter("A", 1e-12, 1e3, "log10",
-                  "A >= 0: from a black coating's wings up to a mirror's peak A/B"),
+                  "A >= 0: from a black coating's wings up to a mirror's peak A/B",
+                  limits=NON_NEGATIVE),
         Parameter("B", 1e-8, 1.0, "log10",
-                  "shoulder B^(1/g) of the lobe: from a polished mirror to a diffuser"),
+                  "B > 0 (the peak A/B is finite): shoulder B^(1/g) of the lobe, from a "
+                  "polished mirror to a diffuser", limits=NON_NEGATIVE),
         Parameter("g", 0.0, 4.0, "linear",
-                  "fall-off power: 0 (constant, Lambertian) to 4 (steep wings)"),
+                  "fall-off power, >= 0 (the lobe falls away from the specular): 0 "
+                  "(constant, Lambertian) to 4 (steep wings)", limits=NON_NEGATIVE),
     )
     linear = ("A",)
     peak = "specular"

@@ -1,5 +1,7 @@
 """A GGX-shaped lobe around the source direction: the back-scatter (retro-reflection) part
-of a sum of models (MODELS.md, "Models added later").
+of a sum of models, brdfjax's own (the GGX distribution of B. Walter, S. R. Marschner, H. Li
+and K. E. Torrance, "Microfacet models for refraction through rough surfaces", Eurographics
+Symposium on Rendering 2007, taken in the phase angle g instead of the facet tilt).
 
     f_r = kb D_GGX(c; beta),  D_GGX(c; beta) = beta^2 / (pi (c^2 (beta^2 - 1) + 1)^2)
     c = max(cos g, 0),  cos g = w_i . w_r = cos ti cos tr + sin ti sin tr cos pr
@@ -20,7 +22,7 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-from brdfjax.models.base import Parameter, ScaledShape, phase_terms
+from brdfjax.models.base import NON_NEGATIVE, Parameter, ScaledShape, phase_terms
 
 
 class PhaseGeometry(NamedTuple):
@@ -61,9 +63,11 @@ class Backscatter(ScaledShape):
     parameters = (
         Parameter("kb", 1e-10, 1e3, "log10",
                   "kb >= 0: down to 1e-10, where even the narrowest lobe is below any "
-                  "measurement (log10 needs a positive floor), up to a retro-reflector"),
+                  "measurement (log10 needs a positive floor), up to a retro-reflector",
+                  limits=NON_NEGATIVE),
         Parameter("beta", 2e-3, 2.0, "log10",
-                  "width like GGX's alpha: 0.002 (about 0.1 deg) to 2 (broader than diffuse)"),
+                  "width, > 0, like GGX's alpha: 0.002 (about 0.1 deg) to 2 (broader than "
+                  "diffuse)", limits=NON_NEGATIVE),
     )
     linear = ("kb",)
     peak = "backscatter"

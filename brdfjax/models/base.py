@@ -46,7 +46,7 @@ class Parameter:
         reason: why this range (shown in the docs and ``brdfjax models --help``).
         limits: the range the parameter can physically take, where it has one (a
             reflectance: 0 to 1), or None: no ``--bound`` may pass it
-            (`brdfjax.fitting.bounds.make_bounds`), and a fit at it is not told to widen.
+            (`brdfjax.models.bounds.make_bounds`), and a fit at it is not told to widen.
     """
 
     name: str
@@ -55,6 +55,21 @@ class Parameter:
     scale: str
     reason: str
     limits: tuple[float, float] | None = None
+
+
+# The physical range of a weight, an albedo, a width or a roughness (`Parameter.limits`):
+# no negative values (a positive one searched in log10 keeps a positive lower bound).
+NON_NEGATIVE = (0.0, float("inf"))
+
+
+def limits_text(limits: tuple[float, float]) -> str:
+    """A physical range in words: ``0 to 1``, ``0 and above``, ``2 and below``."""
+    low, high = (float(x) for x in limits)
+    if np.isfinite(low) and np.isfinite(high):
+        return f"{low:g} to {high:g}"
+    if np.isfinite(low):
+        return f"{low:g} and above"
+    return f"{high:g} and below" if np.isfinite(high) else "any value"
 
 
 def array_module(*values):

@@ -20,7 +20,7 @@ import jax.numpy as jnp
 from jax.scipy.special import erf
 
 from brdfjax.models._microfacet import HalfVector, SpecularMicrofacet
-from brdfjax.models.base import Parameter, safe_divide
+from brdfjax.models.base import NON_NEGATIVE, Parameter, safe_divide
 
 # Beyond these the exponentials are exactly 0 (and erf exactly 1) in float64: the terms take
 # their limits there, which keeps every gradient finite.
@@ -45,12 +45,15 @@ class Beckmann(SpecularMicrofacet):
     summary = ("Beckmann microfacets (Gaussian-like specular lobe, short tails): rough "
                "metals and ground surfaces; compare with ggx on the tails")
     parameters = (
-        Parameter("ks", 1e-6, 1e3, "log10", "specular scale, from near-matte to mirror-like"),
+        Parameter("ks", 1e-6, 1e3, "log10",
+                  "specular scale, >= 0: from near-matte to mirror-like", limits=NON_NEGATIVE),
         Parameter("alpha", 2e-3, 2.0, "log10",
-                  "rms facet slope: 0.002 (a lobe of about 0.1 deg) to 2 (very rough)"),
+                  "rms facet slope, > 0: 0.002 (a lobe of about 0.1 deg) to 2 (very rough)",
+                  limits=NON_NEGATIVE),
         Parameter("f0", 0.0, 1.0, "linear", "Schlick's normal-incidence reflectance",
                   limits=(0.0, 1.0)),
-        Parameter("kd", 1e-8, 1e2, "log10", "diffuse level, down to black coatings"),
+        Parameter("kd", 1e-8, 1e2, "log10", "diffuse level, >= 0: down to black coatings",
+                  limits=NON_NEGATIVE),
     )
 
     def lobe(self, alpha, geometry: HalfVector):

@@ -16,7 +16,8 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-from brdfjax.models.base import Model, Parameter, array_module
+from brdfjax.models.base import NON_NEGATIVE, Model, Parameter, array_module
+from brdfjax.models.bounds import to_unit
 from brdfjax.models.geometry import PAPER_CONSTANTS, Scene, ShadowingConstants, scene
 
 PARAMETER_NAMES = ("kb", "kr", "a", "b", "kd")
@@ -109,13 +110,20 @@ class FiveParameter(Model):
     # is found on every real run tried.
     parameters = (
         Parameter("kb", 1e-14, 1e3, "log10",
-                  "down to 1e-14: the kb-b trade-off of real black coatings"),
-        Parameter("kr", 1e-2, 1e2, "log10", "the paper's 0.48-16 with two decades' margin"),
-        Parameter("a", 1e-2, 1e2, "log10", "the paper's 0.45-16 with margin"),
+                  "the lobe's weight, >= 0: down to 1e-14, the kb-b trade-off of real black "
+                  "coatings", limits=NON_NEGATIVE),
+        Parameter("kr", 1e-2, 1e2, "log10",
+                  "the facet ellipsoid's axis ratio, > 0: the paper's 0.48-16 with two "
+                  "decades' margin", limits=NON_NEGATIVE),
+        Parameter("a", 1e-2, 1e2, "log10",
+                  "the power of 1 - cos g in R0, > 0 (R0 = 1 at back-scatter): the paper's "
+                  "0.45-16 with margin", limits=NON_NEGATIVE),
         Parameter("b", -150.0, 80.0, "asinh",
                   "either sign; asinh keeps |b| < 0.3 (weak Fresnel, cement) at 6 % of "
                   "the range instead of 0.3 %"),
-        Parameter("kd", 1e-8, 1e2, "log10", "the paper's 0.07-2.3 and near-black surfaces"),
+        Parameter("kd", 1e-8, 1e2, "log10",
+                  "the diffuse level, >= 0: the paper's 0.07-2.3 and near-black surfaces",
+                  limits=NON_NEGATIVE),
     )
     linear = ("kb", "kd")
     peak = "backscatter"
@@ -157,8 +165,6 @@ class FiveParameter(Model):
         unchanged (a repeat, which `brdfjax.fitting.polish.polish` skips); a outside its bounds is
         clipped to them.
         """
-        from brdfjax.fitting.bounds import to_unit
-
         wanted = to_unit(jnp.ones(5).at[2].set(FRESNEL_FREE_A).at[3].set(0.0), bounds)
         wanted = jnp.clip(wanted, 0.0, 1.0)
         moved = z.at[..., 2].set(wanted[2]).at[..., 3].set(wanted[3])

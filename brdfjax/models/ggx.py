@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import jax.numpy as jnp
 
 from brdfjax.models._microfacet import HalfVector, SpecularMicrofacet
-from brdfjax.models.base import Parameter
+from brdfjax.models.base import NON_NEGATIVE, Parameter
 
 
 def smith_over_cos(alpha2, cos_t, sin_t):
@@ -35,12 +35,15 @@ class Ggx(SpecularMicrofacet):
     summary = ("GGX microfacets (long-tailed specular lobe): glossy paints, coatings and "
                "metals; often the best predictor of unmeasured incidences on real data")
     parameters = (
-        Parameter("ks", 1e-6, 1e3, "log10", "specular scale, from near-matte to mirror-like"),
+        Parameter("ks", 1e-6, 1e3, "log10",
+                  "specular scale, >= 0: from near-matte to mirror-like", limits=NON_NEGATIVE),
         Parameter("alpha", 2e-3, 2.0, "log10",
-                  "roughness: 0.002 (a lobe of about 0.1 deg) to 2 (broader than diffuse)"),
+                  "roughness, > 0: 0.002 (a lobe of about 0.1 deg) to 2 (broader than "
+                  "diffuse)", limits=NON_NEGATIVE),
         Parameter("f0", 0.0, 1.0, "linear", "Schlick's normal-incidence reflectance",
                   limits=(0.0, 1.0)),
-        Parameter("kd", 1e-8, 1e2, "log10", "diffuse level, down to black coatings"),
+        Parameter("kd", 1e-8, 1e2, "log10", "diffuse level, >= 0: down to black coatings",
+                  limits=NON_NEGATIVE),
     )
 
     def lobe(self, alpha, geometry: HalfVector):

@@ -8,7 +8,7 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-from brdfjax.models.base import Parameter, ScaledShape, broadcast_angles
+from brdfjax.models.base import NON_NEGATIVE, Parameter, ScaledShape, broadcast_angles
 
 
 class LambertGeometry(NamedTuple):
@@ -25,7 +25,8 @@ class Lambert(ScaledShape):
     summary = ("a constant BRDF: the null model every other must beat, and matte "
                "references such as PTFE or Spectralon at small angles")
     parameters = (Parameter("kd", 1e-8, 1e2, "log10",
-                            "from black coatings to well above any physical albedo (1/pi)"),)
+                            "kd >= 0: from black coatings to well above any physical albedo "
+                            "(1/pi)", limits=NON_NEGATIVE),)
     linear = ("kd",)
     constant = "kd"
     scales = ("kd",)

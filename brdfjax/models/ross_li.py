@@ -7,8 +7,13 @@
     cos t = (h/b) sqrt(D^2 + (tan ti tan tr sin pr)^2) / (sec ti + sec tr), clipped to [-1, 1]
     D = sqrt(tan^2 ti + tan^2 tr - 2 tan ti tan tr cos pr)
 
-``cos g = w_i . w_r`` is 1 at back-scatter (MODELS.md, "Models added later"); with b/r = 1 the
-primed angles of the literature are the true ones. The angles xi and t are taken as
+``cos g = w_i . w_r`` is 1 at back-scatter: the phase angle xi of W. Wanner, X. Li and A. H.
+Strahler, "On the derivation of kernels for kernel-driven models of bidirectional
+reflectance", J. Geophys. Res. 100(D10), 21077-21089 (1995), with phi_r = 0 on the source
+side as everywhere in brdfjax; the kernels are theirs, with MODIS's h/b and b/r (W. Lucht,
+C. B. Schaaf and A. H. Strahler, "An algorithm for the retrieval of albedo from space using
+semiempirical BRDF models", IEEE Trans. Geosci. Remote Sens. 38(2), 977-998, 2000). With
+b/r = 1 the primed angles of the literature are the true ones. The angles xi and t are taken as
 ``atan2(sin, cos)`` of a sine computed without cancellation (``sin xi = |w_i x w_r|``), so
 that the derivatives stay finite where ``arccos`` has an infinite one (xi = 0 at
 back-scatter, t = 0 where the shadows vanish); ``D^2`` is written with the cosines
@@ -18,7 +23,7 @@ All three coefficients enter linearly: the fit is one exact, bounded linear solv
 (`brdfjax.fitting.objective.solve_linear`), nothing is searched. Each is >= 0 by default
 (negative kernel weights are unphysical).
 
-Where MODELS.md leaves a choice: at exactly 90 deg (``ti`` or ``tr``) the kernels are
+Where the published kernels leave a choice: at exactly 90 deg (``ti`` or ``tr``) the kernels are
 outside their domain (sec diverges; MODIS uses them below about 70 deg). The code takes each
 cosine as at least `GRAZING_COSINE` in the secants and tangents (about 89.99999994 deg),
 as RPV does, so that values and gradients stay finite there: K_geo is then of order
@@ -34,7 +39,7 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-from brdfjax.models.base import Model, Parameter, phase_terms, safe_sqrt
+from brdfjax.models.base import NON_NEGATIVE, Model, Parameter, phase_terms, safe_sqrt
 
 GRAZING_COSINE = 1e-9
 HEIGHT_RATIO = 2.0  # h/b of MCD43 (LiSparse-R); b/r = 1
@@ -85,9 +90,12 @@ class RossLi(Model):
                "standard; linear, so its fit is one exact solve")
     parameters = (
         Parameter("f_iso", 0.0, 10.0, "linear",
-                  "isotropic weight >= 0 (negative weights are unphysical), up to 10 albedos"),
-        Parameter("f_vol", 0.0, 10.0, "linear", "RossThick volume-scattering weight >= 0"),
-        Parameter("f_geo", 0.0, 10.0, "linear", "LiSparse-R geometric-optics weight >= 0"),
+                  "isotropic weight >= 0 (negative weights are unphysical), up to 10 albedos",
+                  limits=NON_NEGATIVE),
+        Parameter("f_vol", 0.0, 10.0, "linear", "RossThick volume-scattering weight >= 0",
+                  limits=NON_NEGATIVE),
+        Parameter("f_geo", 0.0, 10.0, "linear", "LiSparse-R geometric-optics weight >= 0",
+                  limits=NON_NEGATIVE),
     )
     linear = ("f_iso", "f_vol", "f_geo")
     peak = "backscatter"

@@ -23,7 +23,15 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-from brdfjax.models.base import Model, Parameter, broadcast_angles, mixture, safe_divide, safe_sqrt
+from brdfjax.models.base import (
+    NON_NEGATIVE,
+    Model,
+    Parameter,
+    broadcast_angles,
+    mixture,
+    safe_divide,
+    safe_sqrt,
+)
 
 GRAZING_COSINE = 1e-9
 
@@ -57,13 +65,16 @@ class Rpv(Model):
     summary = ("Rahman-Pinty-Verstraete, the remote-sensing standard: vegetation, soils, "
                "snow and other volume scatterers with a hot spot; no specular facets")
     parameters = (
-        Parameter("rho0", 1e-6, 10.0, "log10", "overall level, black to bright"),
+        Parameter("rho0", 1e-6, 10.0, "log10", "overall level, >= 0: black to bright",
+                  limits=NON_NEGATIVE),
         Parameter("k", 0.05, 3.0, "linear",
                   "bowl (k < 1) or bell (k > 1) shape; 1 is Lambert-like"),
         Parameter("asymmetry", -0.95, 0.95, "linear",
-                  "Henyey-Greenstein asymmetry, back- (< 0) or forward-scattering (> 0)"),
+                  "Henyey-Greenstein asymmetry, within -1 to 1 (its phase function's "
+                  "domain): back- (< 0) or forward-scattering (> 0)", limits=(-1.0, 1.0)),
         Parameter("rhoc", -2.0, 1.95, "linear",
-                  "hot-spot strength: H = 2 - rhoc at back-scatter, kept above 0.05"),
+                  "hot-spot strength: H = 2 - rhoc at back-scatter, not negative for rhoc "
+                  "<= 2; kept above 0.05", limits=(-float("inf"), 2.0)),
     )
     linear = ("rho0 at rhoc's lower bound", "rho0 at rhoc's upper bound")
     peak = "backscatter"

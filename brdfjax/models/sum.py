@@ -2,8 +2,8 @@
 
 ``brdfjax.models.get("ggx+backscatter")`` (or ``--model ggx+backscatter``) gives a `Sum`: a
 model like any other, whose parameter vector is the parts' vectors concatenated; nothing in
-the engine knows it is a sum (the idea of ALTA's compound functions). The rules of
-MODELS.md ("Sums of models"):
+the engine knows it is a sum (the idea of ALTA's compound functions). brdfjax's rules, as
+the docs' Models page (``docs/models.md``, "Sums of models") shows them:
 
 - A part's parameters keep their names; where a name repeats, the later part's gets
   ``_2``, ``_3`` (the name's second, third occurrence): ``ggx+ggx`` is ks, alpha, f0, kd,
@@ -41,6 +41,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from brdfjax.models.base import Model, array_module
+from brdfjax.models.bounds import to_unit
 
 
 class SumGeometry(NamedTuple):
@@ -300,8 +301,6 @@ class Sum(Model):
 
     def idle_parts(self, params, bounds) -> list[str]:
         """A sentence for each part whose weight is zero: its shape is then unidentified."""
-        from brdfjax.fitting.bounds import to_unit
-
         unit = np.asarray(to_unit(np.asarray(params, dtype=float), bounds))
         sentences = []
         for k, part in enumerate(self.parts):

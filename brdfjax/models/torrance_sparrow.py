@@ -22,7 +22,7 @@ from typing import NamedTuple
 import jax.numpy as jnp
 
 from brdfjax.models._microfacet import half_vector
-from brdfjax.models.base import Model, Parameter, safe_sqrt
+from brdfjax.models.base import NON_NEGATIVE, Model, Parameter, safe_sqrt
 from brdfjax.models.geometry import PAPER_CONSTANTS, ShadowingConstants, scene
 
 
@@ -62,11 +62,16 @@ class TorranceSparrow(Model):
     summary = ("the paper's Eq. (2), the Torrance-Sparrow baseline it argues its model "
                "improves on; fit it to measure that claim on your data")
     parameters = (
-        Parameter("g", 1e-8, 1e4, "log10", "specular scale, from near-matte to mirror-like"),
+        Parameter("g", 1e-8, 1e4, "log10",
+                  "specular scale, >= 0: from near-matte to mirror-like", limits=NON_NEGATIVE),
         Parameter("c", 1e-2, 1e3, "log10",
-                  "exp(-c^2 th^2): lobe widths from radians down to a milliradian"),
-        Parameter("n", 1.01, 5.0, "linear", "refractive index of dielectrics and coatings"),
-        Parameter("rho0", 1e-8, 10.0, "log10", "diffuse albedo, down to black coatings"),
+                  "exp(-c^2 th^2), c >= 0: lobe widths from radians down to a milliradian",
+                  limits=NON_NEGATIVE),
+        Parameter("n", 1.01, 5.0, "linear",
+                  "refractive index of dielectrics and coatings, >= 1 (R of a real index "
+                  "from the outside)", limits=(1.0, float("inf"))),
+        Parameter("rho0", 1e-8, 10.0, "log10", "diffuse albedo, >= 0: down to black coatings",
+                  limits=NON_NEGATIVE),
     )
     linear = ("g", "rho0")
     peak = "specular"

@@ -41,11 +41,11 @@ import numpy as np
 
 from brdfjax.cache import stage
 from brdfjax.data.measurements import Measurements
-from brdfjax.fitting.bounds import Bounds, from_unit, to_free, to_unit
 from brdfjax.fitting.fit import placed
 from brdfjax.fitting.objective import Problem, bucket, pad, padded_scene
 from brdfjax.fitting.polish import polish, start_count
 from brdfjax.models import Model
+from brdfjax.models.bounds import Bounds, from_unit, to_free, to_unit
 from brdfjax.models.paper import evaluate_projected
 from brdfjax.uncertainty.likelihood import (
     Posterior,

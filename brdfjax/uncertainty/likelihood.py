@@ -12,7 +12,7 @@ parameters, not assumed. The Eq. (6) weights are a choice of fit objective, not 
 about noise, so the likelihood does not use them (points of weight zero are left out).
 
 Prior, stated plainly: uniform in the coordinates the fit searches, i.e. uniform on the unit
-cube of `brdfjax.fitting.bounds` (log10 of kb, kr, a, kd and asinh b, within the bounds), and, for
+cube of `brdfjax.models.bounds` (log10 of kb, kr, a, kd and asinh b, within the bounds), and, for
 the noise model, uniform in log10 s_rel on [1e-4, 1] and in log10 s_abs on
 [1e-8, 1] x max|y|; zero outside. The posterior is therefore the likelihood restricted to
 that box, and its mode is the maximum-likelihood point.
@@ -32,10 +32,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from brdfjax.data.measurements import Measurements, checked
-from brdfjax.fitting.bounds import Bounds, default_bounds, from_unit
 from brdfjax.fitting.fit import FitResult, split
 from brdfjax.fitting.objective import prepare
 from brdfjax.models import Model, get
+from brdfjax.models.bounds import Bounds, default_bounds, from_unit
 from brdfjax.models.paper import FIVE, evaluate_projected
 
 # Log-uniform prior ranges of the noise model's scales: relative 0.01 % to 100 %; absolute
@@ -96,7 +96,7 @@ def build_posterior(data: Measurements, bounds: Bounds | None = None,
 
     Args:
         data: the measurements (the training subset: held-out incidences already removed).
-        bounds: the parameter box (the model's `brdfjax.fitting.bounds.default_bounds` if None).
+        bounds: the parameter box (the model's `brdfjax.models.bounds.default_bounds` if None).
         model: the `brdfjax.models.Model`.
 
     Returns:

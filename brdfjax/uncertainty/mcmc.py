@@ -23,8 +23,8 @@ import jax
 import numpy as np
 
 from brdfjax.data.measurements import Measurements
-from brdfjax.fitting.bounds import Bounds
 from brdfjax.models import Model
+from brdfjax.models.bounds import Bounds
 from brdfjax.optional import require
 from brdfjax.uncertainty.laplace import laplace_approximation
 from brdfjax.uncertainty.likelihood import (

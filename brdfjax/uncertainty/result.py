@@ -8,10 +8,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from brdfjax.fitting.bounds import Bounds, default_bounds, from_unit
 from brdfjax.fitting.fit import FitResult
 from brdfjax.fitting.objective import projected
 from brdfjax.models import Model
+from brdfjax.models.bounds import Bounds, default_bounds, from_unit
 from brdfjax.models.paper import FIVE
 from brdfjax.uncertainty.likelihood import NOISE_NAMES, Posterior
 

@@ -13,8 +13,9 @@ Stray-light engineers fit the ABg model (`brdfjax.models.abg`) one incidence at 
   its TIS of an entry must stay below 1 for an accurate scatter.
 - **FRED** takes A, B and g of the same formula ``A / (B + |beta - beta0|^g)``, one set per
   scatter model: the row at the incidence of use, or a fit of all incidences together.
-  MODELS.md's FRED check: ``A / B`` (the BSDF at the specular) times the projected solid
-  angle ``pi`` must be at most 1.
+  FRED's check: ``A / B`` (the BSDF at the specular) times the projected solid angle
+  ``pi`` must be at most 1; the BSDF is nowhere above ``A / B``, so that bounds the
+  lobe's total scatter (`brdfjax.models.abg`).
 
 `catalog_entry` writes the entry as text: a header line ``NAME WAVELENGTH_UM`` and one line
 ``ANGLE A B G`` per incidence. That is the content the catalog dialog takes; the exact
@@ -44,7 +45,7 @@ class AbgRow:
         A, B, g: the fitted parameters (BSDF in 1/sr).
         error: E of Eq. (6) of this incidence's own fit.
         tis: the total integrated scatter (reflectance of Eq. 9) of the row.
-        fred_check: ``pi A / B``, at most 1 for FRED (MODELS.md).
+        fred_check: ``pi A / B``, at most 1 for FRED (the module docstring).
         zemax_ok: ``A >= 0`` and ``B > 1e-12`` unless ``g = 0``.
     """
 

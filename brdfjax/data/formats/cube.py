@@ -15,7 +15,8 @@ stays bounded whatever N is; `write_cube` writes one.
 ``brdfjax batch CUBE.h5 --out RESULTS.h5`` writes, for the same sample axis (N,):
 
     one dataset per parameter of the model (kb, kr, ...; NaN where the fit failed),
-    error (E of Eq. 6, a fraction), status (converged, max_steps, failed),
+    error (E of Eq. 6, a fraction), status (converged, max_steps, underdetermined: no more
+    distinct geometries than parameters, or failed),
     message (why, where there is more to say), sample (copied when the cube has names),
     std_NAME with ``--uncertainty laplace``;
     attributes: model, source (the cube) and options (JSON, the options that change results).
@@ -37,11 +38,14 @@ from pathlib import Path
 
 import numpy as np
 
-from brdfjax.data.measurements import DataError, Measurements
+from brdfjax.data.measurements import DataError, Measurements, validate
 
 SUFFIXES = (".h5", ".hdf5", ".nc")
 ANGLES = ("theta_i", "theta_r", "phi_r")
-STATUSES = ("converged", "max_steps", "failed")
+# A results file's statuses (`brdfjax.fitting.fit.STATUSES` of a hybrid fit), and the width
+# of its status column.
+STATUSES = ("converged", "max_steps", "underdetermined", "failed")
+STATUS_WIDTH = max(map(len, STATUSES))
 SCHEMA = ("a cube needs datasets theta_i, theta_r, phi_r (degrees, (P,) or (N, P)) and "
           "brdf (N, P), with optional sigma (N, P) and sample (N,): see brdfjax.data.formats.cube")
 
@@ -99,12 +103,25 @@ class Cube:
         # Shared angles are read once; per-sample ones a block at a time.
         self.shared = {name: np.asarray(self.file[name][...], dtype=float)
                        for name in ANGLES if self.file[name].ndim == 1}
+        if self.shares_geometry:
+            self._check_geometry()
         self.names = None
         if "sample" in self.file:
             if self.file["sample"].shape != (self.count,):
                 raise DataError(f"{self.path}: sample has shape {self.file['sample'].shape}; "
                                 f"give one name per sample, ({self.count},)")
             self.names = [_text(x) for x in self.file["sample"][...]]
+
+    def _check_geometry(self) -> None:
+        """The angle checks a file's measurements get (`validate`: degrees, not radians;
+        zenith angles in [0, 90] deg; azimuths within one turn), once for the geometry that
+        every sample shares, so that a mistake there is one error before any fit, not a
+        failure of every sample. Angles that are NaN are left out, as `read` leaves them."""
+        angles = np.stack([self.shared[name] for name in ANGLES])
+        angles = angles[:, np.all(np.isfinite(angles), axis=0)]
+        if angles.shape[1]:
+            validate(Measurements.from_degrees(*angles, np.full(angles.shape[1], np.nan)),
+                     f"{self.path} (the angles every sample shares)", geometry_only=True)
 
     @property
     def shares_geometry(self) -> bool:
@@ -223,7 +240,7 @@ class CubeResults:
 
     def record(self, indices, numbers: dict) -> None:
         """Journal one block: its sample indices and their numbers
-        (`brdfjax.fitting.cluster.fit_cube_chunk`)."""
+        (`brdfjax.cluster.fit_cube_chunk`)."""
         if np.shape(numbers["params"]) != (len(indices), len(self.names)):
             raise ValueError(f"a block of {len(indices)} samples needs parameters of shape "
                              f"({len(indices)}, {len(self.names)}), not "
@@ -231,7 +248,7 @@ class CubeResults:
         block = {"index": np.asarray(indices, dtype=np.int64),
                  **{name: np.asarray(numbers[name], dtype=float)
                     for name in ("params", "error", "std")},
-                 "status": np.asarray(numbers["status"], dtype="U9"),
+                 "status": np.asarray(numbers["status"], dtype=f"U{STATUS_WIDTH}"),
                  "message": np.asarray(numbers["message"], dtype=str)}
         first = int(np.min(indices))
         temporary = self.parts / f".{first:012d}.{secrets.token_hex(4)}.tmp"
@@ -252,7 +269,7 @@ class CubeResults:
         params = np.full((self.count, len(self.names)), np.nan)
         std = np.full_like(params, np.nan)
         error = np.full(self.count, np.nan)
-        status = np.full(self.count, "", dtype="U9")
+        status = np.full(self.count, "", dtype=f"U{STATUS_WIDTH}")
         message = np.full(self.count, "", dtype=object)
         for part in sorted(self.parts.glob("*.npz")):
             with np.load(part) as block:
@@ -268,7 +285,7 @@ class CubeResults:
                     if uncertainty:
                         results.create_dataset(f"std_{name}", data=std[:, column])
                 results.create_dataset("error", data=error)
-                results.create_dataset("status", data=status.astype("S9"))
+                results.create_dataset("status", data=status.astype(f"S{STATUS_WIDTH}"))
                 results.create_dataset("message", data=list(message),
                                        dtype=h5py.string_dtype())
                 if sample_names is not None:

@@ -35,7 +35,7 @@ def fit_chunk(samples: list, options: dict) -> list[dict]:
     Args:
         samples: `brdfjax.data.measurements.Measurements`, one per sample.
         options: keyword arguments of `brdfjax.fitting.batch.fit_batch`, except that bounds come
-            as ``ranges``, a ``{name: (low, high)}`` dict for `brdfjax.fitting.bounds.make_bounds`
+            as ``ranges``, a ``{name: (low, high)}`` dict for `brdfjax.models.bounds.make_bounds`
             (plain data travel to workers; JAX arrays need not). ``uncertainty``:
             ``"laplace"`` adds `brdfjax.uncertainty.laplace.laplace_approximation` to each result.
 
@@ -83,7 +83,7 @@ def fit_cube_chunk(samples: list, options: dict) -> dict:
 def _batch_options(options: dict) -> tuple:
     """A chunk's ``options`` (`fit_chunk`) as ``(uncertainty, bounds, the keyword arguments
     of fit_batch)``: the box made from ``ranges``."""
-    from brdfjax.fitting.bounds import make_bounds
+    from brdfjax.models.bounds import make_bounds
 
     options = dict(options)
     uncertainty = options.pop("uncertainty", None)
