@@ -92,7 +92,7 @@ def fetch(name: str, *, progress: bool = False) -> Path:
     local = local_folder()
     if local:
         folder = local / name
-        missing = [f for f in files(name) if not (folder / f).is_file()]
+        missing = _missing(folder, name)
         if missing:
             raise ValueError(f"{ENVIRONMENT}={os.environ[ENVIRONMENT]}: {folder} has no {missing[0]}"
                              + (f" (and {len(missing) - 1} more files)" if len(missing) > 1
@@ -126,8 +126,12 @@ def local_folder() -> Path | None:
 def is_present(name: str) -> bool:
     """Whether every file of set ``name`` is already here (no download needed), hashes
     not checked."""
-    folder = (local_folder() or cache_folder()) / name
-    return all((folder / f).is_file() for f in files(name))
+    return not _missing((local_folder() or cache_folder()) / name, name)
+
+
+def _missing(folder: Path, name: str) -> list[str]:
+    """The files of set ``name`` that ``folder`` lacks."""
+    return [f for f in files(name) if not (folder / f).is_file()]
 
 
 def cache_folder() -> Path:
