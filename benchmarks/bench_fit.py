@@ -43,11 +43,11 @@ from brdfjax.compare import (
 )
 from brdfjax.data.formats import load
 from brdfjax.data.synthetic import paper_sample
-from brdfjax.fitting.bounds import default_bounds
 from brdfjax.fitting.evolve import score_population
 from brdfjax.fitting.fit import fit
 from brdfjax.fitting.objective import error as objective_error
 from brdfjax.fitting.objective import problem
+from brdfjax.models.bounds import default_bounds
 from brdfjax.models.paper import PAPER_SAMPLES
 
 TRAIN = [10, 30, 45, 60]

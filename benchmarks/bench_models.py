@@ -286,9 +286,9 @@ def bench_speed(models, repeats):
 
 def bench_cv(models):
     from brdfjax.compare import scipy_vp, unit_objectives
-    from brdfjax.fitting.bounds import default_bounds, from_unit
     from brdfjax.fitting.objective import brdf_values, prepare
     from brdfjax.models import get
+    from brdfjax.models.bounds import default_bounds, from_unit
     from brdfjax.prediction.cross_validation import cross_validate, held_out_error, incidence_groups
 
     rows, misses = [], []
@@ -404,7 +404,8 @@ def paper_worker(tree: str, repeats: int) -> dict:
     # The modules were regrouped into stage packages (2026-12-01); a checkout from before
     # has them at the top level.
     paper_sample = _first_module("brdfjax.data.synthetic", "brdfjax.synthetic").paper_sample
-    default_bounds = _first_module("brdfjax.fitting.bounds", "brdfjax.bounds").default_bounds
+    default_bounds = _first_module("brdfjax.models.bounds", "brdfjax.fitting.bounds",
+                                   "brdfjax.bounds").default_bounds
     score_population = _first_module("brdfjax.fitting.evolve",
                                      "brdfjax.evolve").score_population
     fit = _first_module("brdfjax.fitting.fit", "brdfjax.fitting").fit

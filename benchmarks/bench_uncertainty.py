@@ -164,8 +164,8 @@ def eq6_intervals(result, level: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
     import jax
     import jax.numpy as jnp
 
-    from brdfjax.fitting.bounds import from_unit, to_unit
     from brdfjax.fitting.objective import prepare, targets
+    from brdfjax.models.bounds import from_unit, to_unit
     from brdfjax.models.paper import evaluate_projected
 
     train, model, bounds = result.training, result.model, result.bounds

@@ -491,7 +491,7 @@ def test_a_note_never_offers_a_bound_past_a_physical_limit(capsys):
 def test_a_bound_past_a_physical_limit_is_refused(capsys):
     """f0, a reflectance, lies within 0 to 1: a --bound past it is refused before any work,
     in every model that has it (a sum's second f0 too); inside it, taken."""
-    from brdfjax.fitting.bounds import make_bounds
+    from brdfjax.models.bounds import make_bounds
 
     for model, name in (("ggx", "f0"), ("beckmann", "f0"), ("ggx+ggx", "f0_2")):
         with pytest.raises(ValueError, match=rf"bound of {name}: 0 to 2 leaves its physical "

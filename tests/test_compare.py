@@ -5,8 +5,8 @@ from conftest import REAL
 
 from brdfjax.compare import compare, format_table, nonlinear_parameters
 from brdfjax.data.formats import load
-from brdfjax.fitting.bounds import default_bounds
 from brdfjax.models import get
+from brdfjax.models.bounds import default_bounds
 
 
 @pytest.mark.parametrize(("name", "searched"), [("five", (1, 2, 3)), ("ggx", (1,)),

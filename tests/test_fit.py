@@ -12,7 +12,12 @@ from scipy.optimize import lsq_linear
 from transcription import brdf as transcribed
 
 from brdfjax.data.synthetic import paper_sample
-from brdfjax.fitting.bounds import (
+from brdfjax.fitting.evolve import COUNTED, ascending, evolve
+from brdfjax.fitting.fit import fit
+from brdfjax.fitting.objective import _geometry, problem, projected, solve_linear
+from brdfjax.fitting.polish import polish, polish_population, population_starts
+from brdfjax.models import get
+from brdfjax.models.bounds import (
     default_bounds,
     from_free,
     from_unit,
@@ -20,11 +25,6 @@ from brdfjax.fitting.bounds import (
     to_free,
     to_unit,
 )
-from brdfjax.fitting.evolve import COUNTED, ascending, evolve
-from brdfjax.fitting.fit import fit
-from brdfjax.fitting.objective import _geometry, problem, projected, solve_linear
-from brdfjax.fitting.polish import polish, polish_population, population_starts
-from brdfjax.models import get
 from brdfjax.models.five import FRESNEL_FREE_A
 from brdfjax.models.paper import FIVE, PAPER_SAMPLES, evaluate
 

@@ -7,13 +7,13 @@ import numpy as np
 import optimistix as optx
 import pytest
 
-from brdfjax.fitting.bounds import SATURATED, Bounds, from_free
 from brdfjax.fitting.marquardt import (
     ONE_FUNCTION_SIZE,
     MarquardtDescent,
     ScaledLevenbergMarquardt,
     one_function,
 )
+from brdfjax.models.bounds import SATURATED, Bounds, from_free
 
 UNIT_SQUARE = Bounds(np.zeros(2), np.ones(2), np.zeros(2, dtype=int))
 

@@ -16,9 +16,9 @@ from transcription import generic_points
 
 import brdfjax
 from brdfjax.data.measurements import Measurements
-from brdfjax.fitting.bounds import default_bounds, from_unit, to_unit
 from brdfjax.fitting.objective import error, problem, solve_linear
 from brdfjax.models import available, get
+from brdfjax.models.bounds import default_bounds, from_unit, to_unit
 from brdfjax.models.hemispherical import reflectance
 from brdfjax.models.paper import brdf, evaluate
 

@@ -20,8 +20,8 @@ import brdfjax.fitting.fit
 from brdfjax.cli import main
 from brdfjax.data.measurements import Measurements
 from brdfjax.data.synthetic import paper_sample
-from brdfjax.fitting.bounds import make_bounds, to_unit
 from brdfjax.fitting.fit import fit, split
+from brdfjax.models.bounds import make_bounds, to_unit
 from brdfjax.models.hemispherical import reflectance
 from brdfjax.models.paper import PAPER_SAMPLES, PARAMETER_NAMES, projected_brdf
 from brdfjax.uncertainty.bands import curve_bands, reflectance_bands

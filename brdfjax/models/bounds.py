@@ -2,8 +2,7 @@
 
 The box belongs to the models layer: a model's own code (`brdfjax.models.five`'s
 Fresnel-free start, a sum's ordering of its lobes) maps parameters into it, and the fitting
-stage (`brdfjax.fitting`), which imports the models, searches it. `brdfjax.fitting.bounds`
-re-exports every name of this module for code that imports it from there.
+stage (`brdfjax.fitting`), which imports the models, searches it.
 
 The genetic algorithm searches the unit cube; Levenberg-Marquardt, which has no bounds,
 searches an unconstrained ``u`` with ``z = sigmoid(u)``. A unit coordinate ``z`` maps to a
