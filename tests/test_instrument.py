@@ -351,3 +351,119 @@ def test_measure_visits_the_listed_geometries_in_order(simulator, tmp_path):
     data = load(tmp_path / "listed.csv")
     assert np.array_equal(data.geometries(), geometry_keys(*np.array(listed.geometries).T))
 
+
+
+# ---------------------------------------------------------------- measure --adaptive
+
+REGION = ["--incidence", "10,30,50,70", "--theta-r-step", "10", "--average", "2",
+          "--integration-ms", "1"]
+ADAPTIVE = ["--adaptive", "--target-width", "8", "--start", "12", "--batch", "8", "--quiet"]
+
+
+def journal_records(path, kind):
+    return [r for r in map(json.loads, open(path)) if r["kind"] == kind]
+
+
+@pytest.fixture(scope="module")
+def adaptive_run(simulator, tmp_path_factory):
+    """``measure --adaptive`` run to its stop on a fault-free simulator: (out, journal, the
+    region's plan)."""
+    _, port = simulator()
+    out = tmp_path_factory.mktemp("adaptive") / "khaki.csv"
+    assert main(["measure", "--port", port, "--out", str(out), *REGION, *ADAPTIVE]) == 0
+    return out, out.with_suffix(".journal.jsonl"), scan_plan(build_parser().parse_args(
+        ["measure", "--port", port, "--out", str(out), *REGION]))
+
+
+@pytest.mark.timeout(300)
+def test_adaptive_measurement_stops_on_the_width_with_honest_intervals(adaptive_run):
+    from brdfjax import brdf, fit, predict
+
+    out, journal, region = adaptive_run
+    data = load(out)
+    rounds = journal_records(journal, "round")
+    assert rounds[-1]["half_width"] <= 0.08  # it stopped on the target...
+    assert all(r["half_width"] is None or r["half_width"] > 0.08 for r in rounds[:-1])
+    assert len(data) == rounds[-1]["readings"] < len(region.points)  # ...before the grid
+    assert [r["readings"] for r in rounds] == list(range(12, len(data) + 1, 8))
+    # Every reading was read where a batch said, each geometry once, and the geometries
+    # are the region's.
+    listed = np.concatenate([b["geometries"] for b in journal_records(journal, "batch")])
+    assert np.array_equal(data.geometries(), geometry_keys(*listed.T))
+    grid = {tuple(k) for k in geometry_keys(*np.array([p.angles for p in region.points]).T)}
+    assert {tuple(k) for k in data.geometries()} <= grid
+    # The intervals over the readings it did not take hold the true BRDF (the paper's
+    # model at the simulated khaki paint, not what the loop fitted).
+    left = np.array([p.angles for p in region.points
+                     if tuple(geometry_keys(*p.angles)[0]) not in
+                     {tuple(k) for k in data.geometries()}])
+    ti, tr, pr = np.radians(left.T)
+    truth = np.asarray(brdf(TRUTH, ti, tr, pr))
+    prediction = predict(fit(data, model="ggx", seed=0), Measurements(ti, tr, pr, truth))
+    print(f"{len(data)} of {len(region.points)} read; coverage of the rest "
+          f"{prediction.coverage():.3f}, median half-width "
+          f"{np.median(prediction.half_width()):.4f}")
+    assert 0.90 <= prediction.coverage() <= 1.0
+    assert np.median(prediction.half_width()) <= 0.08
+
+
+@pytest.mark.timeout(400)
+def test_adaptive_measurement_interrupted_resumes_with_the_same_decisions(
+        simulator, adaptive_run, tmp_path):
+    import signal
+    import time
+
+    clean_out, clean_journal, _ = adaptive_run
+    out = tmp_path / "khaki.csv"
+    journal = out.with_suffix(".journal.jsonl")
+    _, port = simulator()
+    command = [sys.executable, "-m", "brdfjax.cli", "measure", "--port", port, "--out",
+               str(out), *REGION, *ADAPTIVE]
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True)
+    deadline = time.monotonic() + 200
+    while time.monotonic() < deadline and process.poll() is None:  # the start read: fitting
+        if journal.exists() and len(journal_records(journal, "reading")) >= 24:
+            break
+        time.sleep(0.05)
+    time.sleep(1.0)
+    process.send_signal(signal.SIGINT)
+    tic = time.monotonic()
+    _, err = process.communicate(timeout=30)
+    assert process.returncode == 130, err
+    assert time.monotonic() - tic < 2.0
+    assert not out.exists()
+    taken = len(journal_records(journal, "reading"))
+    assert taken >= 24
+
+    _, port = simulator()
+    assert main(["measure", "--port", port, "--out", str(out), *REGION, *ADAPTIVE]) == 0
+    with Instrument(port) as instrument:  # nothing read twice
+        assert int(instrument.status()["reads"]) == len(journal_records(journal, "reading")) \
+            - taken
+    strip = [{k: v for k, v in r.items() if k != "time"} for r in
+             journal_records(journal, "batch")]
+    assert strip == [{k: v for k, v in r.items() if k != "time"}
+                     for r in journal_records(clean_journal, "batch")]
+    assert same_readings(load(out), load(clean_out))
+
+
+@pytest.mark.timeout(120)
+def test_adaptive_bad_input_fails_before_any_motor_moves(tmp_path, capsys):
+    out = str(tmp_path / "never.csv")
+    port = ["--port", "/dev/no-such-port", "--out", out]
+    cases = {
+        ("--target-width", "0"): "--target-width 0 %: give the median 95 % half-width",
+        ("--model", "nonesuch"): "--model nonesuch: unknown model",
+        ("--start", "4"): "--start 4: ggx has 4 parameters",
+        ("--max-readings", "10"): "--max-readings 10: fewer than the 20 readings",
+        ("--max-minutes", "-1"): "--max-minutes -1: give a time above 0",
+    }
+    for options, message in cases.items():
+        assert main(["measure", *port, *REGION, "--adaptive", *options]) == 1
+        assert message in capsys.readouterr().err, options
+    assert main(["measure", *port, *REGION, "--target-width", "5"]) == 1
+    assert "--target-width: only with --adaptive" in capsys.readouterr().err
+    assert main(["measure", *port, "--incidence", "30,85", "--adaptive"]) == 1
+    assert "85 deg" in capsys.readouterr().err
+    assert not (tmp_path / "never.journal.jsonl").exists()

@@ -14,6 +14,9 @@ from brdfjax.commands import (
 
 PLAN_OPTIONS = ("theta_r_step", "theta_r_max", "azimuth", "average", "integration_ms",
                 "beam_margin")
+ADAPTIVE_DEFAULTS = {"target_width": 10.0, "start": 20, "batch": 10, "max_readings": None,
+                     "max_minutes": None, "candidates": None, "model": "ggx", "seed": 0,
+                     "plot": None}
 
 
 def register(subparsers) -> None:
@@ -55,6 +58,34 @@ def register(subparsers) -> None:
     scan.add_argument("--beam-margin", type=float, metavar="DEG",
                       help="skip geometries with the detector this close to the source "
                            "(default 5)")
+    adaptive = p.add_argument_group(
+        "adaptive measurement (--adaptive): read only what the prediction over the plan's "
+        "geometries needs")
+    adaptive.add_argument("--adaptive", action="store_true",
+                          help="a closed loop: a space-filling start, then fit, predict over "
+                               "the plan's geometries and read the batch that most narrows "
+                               "the prediction, until --target-width or a budget is reached")
+    adaptive.add_argument("--target-width", type=float, default=10.0, metavar="PERCENT",
+                          help="stop when the median calibrated 95 %% half-width over the "
+                               "plan's geometries is at most this, in %% (default 10)")
+    adaptive.add_argument("--start", type=int, default=20, metavar="N",
+                          help="readings of the space-filling start (default 20)")
+    adaptive.add_argument("--batch", type=int, default=10, metavar="N",
+                          help="readings planned per round (default 10)")
+    adaptive.add_argument("--max-readings", type=int, metavar="N",
+                          help="stop after this many readings (checked between rounds)")
+    adaptive.add_argument("--max-minutes", type=float, metavar="MIN",
+                          help="stop after this much instrument time (checked between rounds)")
+    adaptive.add_argument("--candidates", metavar="GEOM",
+                          help="the geometries that may be read (a file; default: the plan's)")
+    adaptive.add_argument("--model", default="ggx", metavar="NAME",
+                          help="the model that predicts, as in fit (default ggx; auto: the "
+                               "one brdfjax models recommends, chosen each round)")
+    adaptive.add_argument("--seed", type=int, default=0,
+                          help="seeds the start, the fits and the plans (default 0)")
+    adaptive.add_argument("--plot", metavar="PNG",
+                          help="the figure of width against readings (default: FILE with "
+                               "the suffix .adaptive.png)")
     p.set_defaults(run=run_measure)
 
     p = subparsers.add_parser("instrument", help="instrument tools (the simulator)")
@@ -128,6 +159,13 @@ def run_measure(args) -> None:
     plan = scan_plan(args)
     journal = args.journal or Path(args.out).with_suffix(".journal.jsonl")  # measure's default
     check_writable({"--out": args.out, "--journal": journal})
+    if args.adaptive:
+        run_adaptive(args, plan)
+        return
+    given = [f"--{name.replace('_', '-')}" for name, default in ADAPTIVE_DEFAULTS.items()
+             if getattr(args, name) != default]
+    if given:
+        raise ValueError(f"{', '.join(given)}: only with --adaptive")
     print(f"plan: {len(plan.points)} geometries x (sample + reference); {plan.blocked} "
           "skipped where the detector would block the source", file=sys.stderr)
     result = measure(args.port, plan, args.out, journal=args.journal,
@@ -137,6 +175,47 @@ def run_measure(args) -> None:
     print(f"wrote {len(result.data)} points to {args.out} ({result.read_now} readings now, "
           f"{result.resumed} from the journal {result.journal}; {result.resends} commands "
           "resent)")
+
+
+def run_adaptive(args, region) -> None:
+    """``measure --adaptive``: `brdfjax.instrument.adaptive.measure_adaptive` over the
+    plan's geometries, its report printed and its figure written."""
+    from pathlib import Path
+
+    from brdfjax.cache import enable
+    from brdfjax.data.formats import load_geometry
+    from brdfjax.instrument.adaptive import check_settings, measure_adaptive, region_geometry
+
+    figure = args.plot or str(Path(args.out).with_suffix(".adaptive.png"))
+    check_writable(figures={"--plot": figure})
+    candidates = None
+    if args.candidates is not None:
+        from brdfjax.data.measurements import DataError
+
+        try:
+            candidates = load_geometry(args.candidates)
+        except DataError as problem:
+            raise ValueError(f"--candidates: {problem}") from None
+    settings = {"target_width": args.target_width / 100, "model": args.model,
+                "start": args.start, "batch": args.batch, "max_readings": args.max_readings,
+                "max_minutes": args.max_minutes}
+    check_settings(region, region_geometry(region) if candidates is None else candidates,
+                   **settings)
+    enable()
+    print(f"adaptive: predicting over the plan's {len(region.points)} geometries; stop at a "
+          f"median 95 % half-width of {args.target_width:g} %", file=sys.stderr)
+    result = measure_adaptive(
+        args.port, region, args.out, candidates=candidates, seed=args.seed, **settings,
+        journal=args.journal,
+        reference_reflectance=args.reference_reflectance, baud=args.baud,
+        timeout=args.timeout, retries=args.retries,
+        metadata={"sample": args.sample or Path(args.out).stem}, progress=not args.quiet,
+        plot=figure)
+    for line in result.report():
+        print(line)
+    print(f"wrote {len(result.data)} points to {args.out} and the figure {figure} "
+          f"({result.read_now} readings now, {result.resumed} from the journal "
+          f"{result.journal}; {result.resends} commands resent)")
 
 
 def run_simulate(args) -> None:

@@ -24,6 +24,8 @@ import fcntl
 import json
 import math
 import os
+import time
+from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -75,6 +77,7 @@ class Journal:
             raise DataError("the journal is in use by another acquisition", self.path) from None
         self.readings: dict[tuple[int, str], dict] = {}
         self.instrument: dict = {}  # what the last connected instrument said to IDN?
+        self._other: list[dict] = []  # the plan line and any other records
         if self.path.stat().st_size:
             try:
                 self._load(plan)
@@ -109,6 +112,13 @@ class Journal:
             self.readings[(record["point"], record["target"])] = record
         elif record.get("kind") == "instrument":
             self.instrument = record["instrument"]
+        else:
+            self._other.append(record)
+
+    def kept(self, kind: str) -> list[dict]:
+        """The records of ``kind`` other than readings (an adaptive run's ``batch`` and
+        ``round`` lines), in the order written."""
+        return [record for record in self._other if record.get("kind") == kind]
 
     def append(self, record: dict) -> None:
         """Write one record and make it durable before returning."""
@@ -156,15 +166,8 @@ def measure(port: str, plan: Plan, out, *, journal=None, reference_reflectance: 
                 if (p.index, t) not in record.readings]
         resends = _acquire(port, plan, todo, record, baud=baud, timeout=timeout,
                            retries=retries, progress=progress) if todo else 0
-        data = to_measurements(plan, record.readings, reference_reflectance, {
-            "sample": Path(out).stem, **(metadata or {}),
-            "wavelength_nm": f"{record.instrument.get('wavelength_nm', math.nan):g}",
-            "instrument": " ".join(str(record.instrument.get(k, "?"))
-                                   for k in ("model", "serial", "firmware")),
-            "reference_reflectance": reference_reflectance,
-            "method": "reference-sample method, Eq. (7)-(8); sigma from the spread of the "
-                      "integrations",
-            "journal": str(journal_path)})
+        data = to_measurements(plan, record.readings, reference_reflectance, file_metadata(
+            out, record, reference_reflectance, metadata))
     finally:
         record.close()
     from brdfjax.data.formats import save
@@ -173,11 +176,39 @@ def measure(port: str, plan: Plan, out, *, journal=None, reference_reflectance: 
     return MeasureResult(data, len(todo), resumed, resends, Path(journal_path))
 
 
+def file_metadata(out, record: Journal, reference_reflectance: float,
+                  metadata: dict | None, method: str = "") -> dict:
+    """The measurement file's metadata: ``sample`` (by default the name of ``out``), the
+    instrument's identity and wavelength, the method and the journal."""
+    return {"sample": Path(out).stem, **(metadata or {}),
+            "wavelength_nm": f"{record.instrument.get('wavelength_nm', math.nan):g}",
+            "instrument": " ".join(str(record.instrument.get(k, "?"))
+                                   for k in ("model", "serial", "firmware")),
+            "reference_reflectance": reference_reflectance,
+            "method": "reference-sample method, Eq. (7)-(8); sigma from the spread of the "
+                      f"integrations{method}",
+            "journal": str(record.path)}
+
+
 def _acquire(port, plan: Plan, todo, record: Journal, *, baud, timeout, retries,
              progress) -> int:
     """Read every (point, target) of ``todo``, journaling each; return the resends."""
     from tqdm import tqdm
 
+    with connected(port, record, plan, baud=baud, timeout=timeout,
+                   retries=retries) as session:
+        total = len(plan.points)
+        with tqdm(total=total, initial=total - len(_by_point(todo)), unit="geometry",
+                  desc="measure", disable=not progress, dynamic_ncols=True) as bar:
+            session.read(plan, todo, record, lambda: bar.update(1))
+        return session.instrument.resends
+
+
+@contextmanager
+def connected(port, record: Journal, plan: Plan, *, baud, timeout, retries):
+    """An open, identified and homed instrument at ``port`` (its identity journaled), as a
+    `Session`; `ValueError` before any motor moves if ``plan`` leaves the motors' ranges
+    the instrument reports."""
     from brdfjax.instrument.driver import Instrument
 
     with Instrument(port, baud=baud, timeout=timeout, retries=retries) as instrument:
@@ -185,30 +216,43 @@ def _acquire(port, plan: Plan, todo, record: Journal, *, baud, timeout, retries,
         plan.check_limits({m: instrument.limits(m) for m in "ABC"})
         record.append({"kind": "instrument", "instrument": identity})
         instrument.home()
-        position = dict.fromkeys("ABC", 0.0)
-        in_beam = None
-        total = 2 * len(plan.points)
-        with tqdm(total=total, initial=total - len(todo), unit="reading", desc="measure",
-                  disable=not progress, dynamic_ncols=True) as bar:
-            for point, pair in _by_point(todo):
-                for motor in "BAC":  # the source first: the detector sweeps last
-                    wanted = getattr(point, motor.lower())
-                    if position[motor] != wanted:
-                        instrument.move(motor, wanted)
-                        position[motor] = wanted
-                if in_beam in pair and pair[0] != in_beam:  # what is in the beam first
-                    pair = pair[::-1]
-                for target in pair:
-                    if target != in_beam:
-                        instrument.select(target.upper())
-                        in_beam = target
-                    reading = instrument.read(plan.average, plan.integration_ms)
-                    record.append({"kind": "reading", "point": point.index, "target": target,
-                                   "a": point.a, "b": point.b, "c": point.c,
-                                   "volts": reading.volts, "std": reading.std,
-                                   "count": reading.count})
-                    bar.update(1)
-        return instrument.resends
+        yield Session(instrument)
+
+
+class Session:
+    """A connected instrument and where its motors and sample changer stand, so that a
+    reading moves only what it must."""
+
+    def __init__(self, instrument):
+        self.instrument = instrument
+        self.position = dict.fromkeys("ABC", 0.0)  # homed
+        self.in_beam = None
+
+    def read(self, plan: Plan, todo, record: Journal, point_done=lambda: None) -> None:
+        """Read every (point, target) of ``todo`` in order, journaling each with the
+        instrument seconds it took (motors, changer, integrations); ``point_done()`` after
+        each point's readings."""
+        for point, pair in _by_point(todo):
+            tic = time.monotonic()
+            for motor in "BAC":  # the source first: the detector sweeps last
+                wanted = getattr(point, motor.lower())
+                if self.position[motor] != wanted:
+                    self.instrument.move(motor, wanted)
+                    self.position[motor] = wanted
+            if self.in_beam in pair and pair[0] != self.in_beam:  # what is in the beam first
+                pair = pair[::-1]
+            for target in pair:
+                if target != self.in_beam:
+                    self.instrument.select(target.upper())
+                    self.in_beam = target
+                reading = self.instrument.read(plan.average, plan.integration_ms)
+                toc = time.monotonic()
+                record.append({"kind": "reading", "point": point.index, "target": target,
+                               "a": point.a, "b": point.b, "c": point.c,
+                               "volts": reading.volts, "std": reading.std,
+                               "count": reading.count, "seconds": round(toc - tic, 4)})
+                tic = toc
+            point_done()
 
 
 def _by_point(todo):

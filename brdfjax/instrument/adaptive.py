@@ -1,0 +1,395 @@
+"""Adaptive measurement: read what the prediction needs, and stop when it is good enough.
+
+`measure_adaptive` closes the loop of `brdfjax.prediction.design.plan` over the instrument.
+The region is where the prediction is wanted (a grid plan's geometries); the candidates are
+the geometries the loop may read (by default the region's own):
+
+1. **Start:** ``start`` readings spread over the candidates (greedy maximin, no data).
+2. **Assess:** the readings so far are fitted (``model``; ``auto``: the model ``brdfjax
+   models`` recommends for prediction, chosen again each round) and the prediction, the
+   model times its learned discrepancy, is made over the region with its conformal 95 %
+   intervals (`brdfjax.prediction.intervals.predict`, calibrated on held-out incidences).
+   The round's width is the median over the region of the 95 % half-width relative to the
+   prediction.
+3. **Stop** when that width is at most ``target_width``, or when ``max_readings`` readings
+   or ``max_minutes`` of instrument time are spent (checked between batches), or no
+   candidate is left.
+4. **Plan** otherwise the next ``batch`` readings, those that most reduce the integrated
+   variance of the discrepancy over the region (ALC), in a short route; read them; back to 2.
+
+**The journal** (`brdfjax.instrument.acquire.Journal`) is ``measure``'s: its first line
+holds the run's settings (`Settings`: the region, a digest of the candidates, the model,
+seed and reading settings; not the stop rule, so that a finished run can be resumed with a
+smaller target or a larger budget). A ``batch`` line lists a batch's geometries before any
+is read, each ``reading`` line carries the instrument seconds it took (motors, changer,
+integrations), and a ``round`` line holds each assessment. A rerun with the same journal
+replays it: recorded batches are read (only their missing readings), not planned again;
+recorded rounds are not fitted again; from there the same seed makes the same decisions.
+Nothing read is lost or read twice.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import warnings
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from brdfjax.data.measurements import DataError, Measurements
+from brdfjax.instrument.acquire import (
+    TARGETS,
+    Journal,
+    connected,
+    file_metadata,
+    to_measurements,
+)
+from brdfjax.instrument.plan import Plan
+
+START_READINGS = 20
+BATCH_READINGS = 10
+STOPPED = {"target": "the median 95 % half-width reached the target",
+           "max-readings": "the reading budget (--max-readings) was spent",
+           "max-minutes": "the time budget (--max-minutes) was spent",
+           "candidates": "every candidate geometry was read"}
+
+
+@dataclass(frozen=True)
+class Settings:
+    """What decides an adaptive run's readings (the journal's first line): the region's
+    geometries, the candidates' digest (`digest`), and the fit's and the readings' settings."""
+
+    region: tuple
+    candidates: str
+    model: str
+    seed: int
+    start: int
+    batch: int
+    average: int
+    integration_ms: float
+    beam_margin: float
+
+    def to_dict(self) -> dict:
+        record = asdict(self)
+        record["region"] = [list(g) for g in self.region]
+        return {"adaptive": record}
+
+
+@dataclass(frozen=True)
+class Round:
+    """One assessment: after ``readings`` readings and ``minutes`` of instrument time, the
+    prediction of ``model`` had a median 95 % half-width of ``half_width`` (relative; inf
+    when it could not be made: too few incidences or a failed fit)."""
+
+    readings: int
+    minutes: float
+    model: str
+    half_width: float
+
+
+@dataclass(frozen=True)
+class AdaptiveResult:
+    """The outcome of `measure_adaptive`.
+
+    Attributes:
+        data: the measurements written to the output file.
+        rounds: every assessment, in order.
+        stopped: why it stopped: ``target``, ``max-readings``, ``max-minutes`` or
+            ``candidates`` (none left).
+        target_width: the stop rule's width (relative).
+        read_now, resumed, resends: readings taken by this run, taken from the journal, and
+            commands resent.
+        journal: the journal's path.
+    """
+
+    data: Measurements
+    rounds: list
+    stopped: str
+    target_width: float
+    read_now: int
+    resumed: int
+    resends: int
+    journal: Path
+
+    def report(self) -> list[str]:
+        """The run in a few lines."""
+        last = self.rounds[-1]
+        why = STOPPED[self.stopped]
+        if self.stopped == "target":
+            why += f" {100 * self.target_width:g} %"
+        lines = [f"adaptive: stopped after {len(self.rounds)} round(s): {why}",
+                 (f"adaptive: {len(self.data)} geometries read (sample + reference each) in "
+                  f"{last.minutes:.1f} instrument minutes; model {last.model}; median 95 % "
+                  f"half-width over the region {_percent(last.half_width)}")]
+        lines += [f"  round {k}: {r.readings:4d} readings, {r.minutes:6.1f} min, {r.model}, "
+                  f"half-width {_percent(r.half_width)}" for k, r in enumerate(self.rounds)]
+        return lines
+
+
+def digest(candidates: Measurements) -> str:
+    """A short fingerprint of a candidate set's geometries (degrees to 1e-6)."""
+    angles = np.round(np.degrees([candidates.theta_i, candidates.theta_r,
+                                  np.mod(candidates.phi_r, 2 * np.pi)]), 6)
+    return hashlib.sha256(np.ascontiguousarray(angles.T).tobytes()).hexdigest()[:16]
+
+
+def check_settings(region: Plan, candidates: Measurements, *, target_width: float,
+                   model: str, start: int, batch: int, max_readings, max_minutes) -> None:
+    """Refuse bad settings in one line naming the option, before any motor moves."""
+    from brdfjax.models import get
+    from brdfjax.prediction.design import check_inputs
+
+    if not target_width > 0:
+        raise ValueError(f"--target-width {_percent(target_width)}: give the median 95 % "
+                         "half-width to stop at, above 0 (for example 10 for 10 %)")
+    for option, value in (("--start", start), ("--batch", batch)):
+        if value < 1:
+            raise ValueError(f"{option} {value}: give a whole number of readings, at least 1")
+    if max_readings is not None and max_readings < start:
+        raise ValueError(f"--max-readings {max_readings}: fewer than the {start} readings of "
+                         "the start (--start)")
+    if max_minutes is not None and not max_minutes > 0:
+        raise ValueError(f"--max-minutes {max_minutes:g}: give a time above 0")
+    if model != "auto":
+        try:
+            size = get(model).size
+        except ValueError as problem:
+            raise ValueError(f"--model {model}: {problem}") from None
+        if start <= size:
+            raise ValueError(f"--start {start}: {model} has {size} parameters; a prediction "
+                             f"needs more readings than that to start from (give --start "
+                             f"{max(2 * size, START_READINGS)})")
+    check_inputs(candidates, start, region=region_geometry(region),
+                 names={"budget": "--start", "candidates": "the candidates",
+                        "region": "the region (the plan's grid)"})
+
+
+def measure_adaptive(port: str, region: Plan, out, *, candidates: Measurements | None = None,
+                     target_width: float = 0.10, model: str = "ggx", seed: int = 0,
+                     start: int = START_READINGS, batch: int = BATCH_READINGS,
+                     max_readings: int | None = None, max_minutes: float | None = None,
+                     journal=None, reference_reflectance: float = 0.99, baud: int = 115200,
+                     timeout: float = 1.0, retries: int = 5, metadata: dict | None = None,
+                     progress: bool = True, plot=None) -> AdaptiveResult:
+    """Measure adaptively on the instrument at ``port`` until the prediction over
+    ``region`` is as narrow as ``target_width`` (see the module docstring).
+
+    Args:
+        port: the instrument's serial device.
+        region: a grid plan whose geometries the prediction is for; its ``average``,
+            ``integration_ms`` and ``beam_margin`` are every reading's.
+        out: the measurement file to write.
+        candidates: the geometries that may be read (default: the region's).
+        target_width: the median relative 95 % half-width to stop at (0.10: 10 %).
+        model: the model that predicts (a name, or ``auto``).
+        seed: seeds the start, the fits and the cross-validation.
+        start, batch: readings of the space-filling start and of each later batch.
+        max_readings, max_minutes: budgets (None: no limit), checked between batches.
+        journal: the journal file (default: ``out`` with the suffix ``.journal.jsonl``).
+        reference_reflectance, baud, timeout, retries, metadata: as in
+            `brdfjax.instrument.acquire.measure`.
+        progress: show progress (readings, minutes, width against the target) on stderr.
+        plot: write the figure of width against readings there (None: no figure).
+
+    Returns:
+        An `AdaptiveResult`.
+    """
+    candidates = region_geometry(region) if candidates is None else candidates
+    check_settings(region, candidates, target_width=target_width, model=model, start=start,
+                   batch=batch, max_readings=max_readings, max_minutes=max_minutes)
+    settings = Settings(tuple(p.angles for p in region.points), digest(candidates), model,
+                        seed, start, batch, region.average, region.integration_ms,
+                        region.beam_margin)
+    journal_path = Path(out).with_suffix(".journal.jsonl") if journal is None else journal
+    record = Journal(journal_path, settings)
+    loop = _Loop(record, settings, candidates, region_geometry(region), progress)
+    try:
+        resumed = len(record.readings)
+        with connected(port, record, region, baud=baud, timeout=timeout,
+                       retries=retries) as session:
+            stopped = loop.run(session, target_width, max_readings, max_minutes)
+            resends = session.instrument.resends
+        data = to_measurements(loop.plan, record.readings, reference_reflectance,
+                               file_metadata(out, record, reference_reflectance, metadata,
+                                             f"; read adaptively ({model}), stopped on "
+                                             f"{stopped}"))
+    finally:
+        record.close()
+    from brdfjax.data.formats import save
+
+    result = AdaptiveResult(data, loop.rounds, stopped, target_width,
+                            len(record.readings) - resumed, resumed, resends,
+                            Path(journal_path))
+    if plot is not None:
+        plot_rounds(result, plot, title=f"{Path(out).stem}: adaptive measurement")
+    save(data, out)
+    return result
+
+
+class _Loop:
+    """The rounds of an adaptive run over an open journal: batches and rounds already in
+    it are replayed, the rest measured and decided."""
+
+    def __init__(self, record: Journal, settings: Settings, candidates: Measurements,
+                 region: Measurements, progress: bool):
+        self.record, self.settings = record, settings
+        self.candidates, self.region, self.progress = candidates, region, progress
+        self.batches = [tuple(map(tuple, b["geometries"])) for b in record.kept("batch")]
+        self.rounds = [Round(r["readings"], r["minutes"], r["model"],
+                             math.inf if r["half_width"] is None else r["half_width"])
+                       for r in record.kept("round")]
+        self.plan = None
+
+    def run(self, session, target_width, max_readings, max_minutes) -> str:
+        from tqdm import tqdm
+
+        total = max_readings or len(self.candidates)
+        with tqdm(total=total, unit="reading", desc="measure --adaptive", dynamic_ncols=True,
+                  disable=not self.progress) as bar:
+            if not self.batches:
+                self._add_batch(self._next(None, self.settings.start))
+            for k in range(len(self.candidates)):  # at most one round per candidate
+                self.plan = Plan(geometries=sum(self.batches[:k + 1], ()),
+                                 **self._reading_settings())
+                todo = [(p, t) for p in self.plan.points[-len(self.batches[k]):]
+                        for t in TARGETS if (p.index, t) not in self.record.readings]
+                bar.n = len(self.plan.points) - len({p.index for p, _ in todo})
+                bar.refresh()
+                session.read(self.plan, todo, self.record, lambda: bar.update(1))
+                data = self._data()
+                if k == len(self.rounds):
+                    self._assess(data)
+                done = self.rounds[k]
+                bar.set_postfix_str(f"{done.minutes:.1f} min, half-width "
+                                    f"{_percent(done.half_width)} (target "
+                                    f"{_percent(target_width)}), {done.model}")
+                stopped = _stop(done, len(data), len(self.candidates), target_width,
+                                max_readings, max_minutes)
+                if stopped:
+                    return stopped
+                if k + 1 == len(self.batches):
+                    size = min(self.settings.batch, len(self.candidates) - len(data),
+                               (max_readings or math.inf) - len(data))
+                    self._add_batch(self._next(data, int(size), done.model))
+        return "candidates"
+
+    def _reading_settings(self) -> dict:
+        return {"average": self.settings.average, "integration_ms": self.settings.integration_ms,
+                "beam_margin": self.settings.beam_margin}
+
+    def _data(self) -> Measurements:
+        return to_measurements(self.plan, self.record.readings, 1.0, {})
+
+    def _next(self, data, size, model=None) -> tuple:
+        """The next batch's geometries, in route order."""
+        from brdfjax.prediction.design import plan
+
+        if model is not None and model.startswith("auto"):
+            model = "ggx"  # auto could not choose yet (too few incidences)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            chosen = plan(data, self.candidates, size, region=self.region,
+                          model=model or "ggx", seed=self.settings.seed)
+        return tuple(zip(*(np.round(a, 6).tolist() for a in
+                           (chosen.theta_i, chosen.theta_r, chosen.phi_r))))
+
+    def _add_batch(self, geometries: tuple) -> None:
+        self.record.append({"kind": "batch", "round": len(self.batches),
+                            "geometries": [list(g) for g in geometries]})
+        self.batches.append(geometries)
+
+    def _assess(self, data: Measurements) -> None:
+        model, width = assess(data, self.region, self.settings.model, self.settings.seed)
+        minutes = sum(r.get("seconds", 0.0) for r in self.record.readings.values()) / 60
+        done = Round(len(data), minutes, model, width)
+        finite = {"half_width": width if math.isfinite(width) else None}  # JSON has no inf
+        self.record.append({"kind": "round", **asdict(done), **finite})
+        self.rounds.append(done)
+
+
+def assess(data: Measurements, region: Measurements, model: str, seed: int) -> tuple:
+    """``(model, width)``: the model that predicts (``auto`` chosen as ``brdfjax models``
+    recommends) and the median over ``region`` of its calibrated 95 % half-width, relative;
+    inf when no calibrated prediction can be made yet (fewer than 3 incidences, or the fit
+    failed or is underdetermined)."""
+    from brdfjax.fitting.fit import fit
+    from brdfjax.prediction.intervals import predict
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            if model == "auto":
+                from brdfjax.prediction.selection import compare_models
+
+                model = compare_models(data, seed=seed, discrepancy="gp").predictor.name
+            result = fit(data, model=model, seed=seed)
+            if result.status in ("failed", "underdetermined"):
+                return model, math.inf
+            prediction = predict(result, region, seed=seed)
+        except DataError:  # too few incidences to hold one out
+            return model if model != "auto" else "auto (not yet)", math.inf
+    return model, float(np.median(prediction.half_width()))
+
+
+def _stop(done: Round, readings: int, candidates: int, target_width, max_readings,
+          max_minutes) -> str | None:
+    """Why the run stops after the round ``done``, or None."""
+    if done.half_width <= target_width:
+        return "target"
+    if max_readings is not None and readings >= max_readings:
+        return "max-readings"
+    if max_minutes is not None and done.minutes >= max_minutes:
+        return "max-minutes"
+    if readings >= candidates:
+        return "candidates"
+    return None
+
+
+def plot_rounds(result: AdaptiveResult, path, title: str = "") -> None:
+    """The median 95 % half-width against readings (instrument minutes on the top axis),
+    with the target."""
+    from brdfjax.data.formats import replace_atomically
+    from brdfjax.plot import _pyplot
+
+    plt = _pyplot()
+    readings = np.array([r.readings for r in result.rounds], float)
+    minutes = np.array([r.minutes for r in result.rounds])
+    width = 100 * np.array([r.half_width for r in result.rounds])
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    shown = np.isfinite(width)
+    ax.plot(readings[shown], width[shown], "o-", color="C0", label="median 95 % half-width")
+    for n in readings[~shown]:
+        ax.axvline(n, color="0.7", lw=0.8, ls=":")
+    ax.axhline(100 * result.target_width, color="C3", ls="--",
+               label=f"target {100 * result.target_width:g} %")
+    ax.set_ylim(0, 1.1 * max(np.max(width[shown], initial=0), 100 * result.target_width))
+    ax.set_xlabel("readings (each: sample + reference)")
+    ax.set_ylabel("median 95 % half-width over the region (%)")
+    if len(readings) > 1 and np.all(np.diff(minutes) > 0):
+        from matplotlib.ticker import MaxNLocator
+
+        top = ax.secondary_xaxis("top", functions=(
+            lambda n: np.interp(n, readings, minutes), lambda m: np.interp(m, minutes, readings)))
+        top.xaxis.set_major_locator(MaxNLocator(5))
+        top.set_xlabel("instrument minutes")
+    models = dict.fromkeys(r.model for r in result.rounds)
+    about = f"model: {', '.join(models)}; stopped: {STOPPED[result.stopped]}"
+    note = "dotted lines: rounds without a calibrated prediction yet" if (~shown).any() else ""
+    ax.set_title("\n".join(filter(None, [title, about, note])), fontsize=9)
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8, loc="upper right")
+    fig.tight_layout()
+    replace_atomically(path, lambda temporary: fig.savefig(temporary, dpi=120))
+    plt.close(fig)
+
+
+def region_geometry(region: Plan) -> Measurements:
+    """Geometry-only `Measurements` of a plan's points."""
+    theta_i, theta_r, phi_r = np.array([p.angles for p in region.points], float).T
+    return Measurements.from_degrees(theta_i, theta_r, phi_r, np.full(theta_i.size, np.nan))
+
+
+def _percent(width: float) -> str:
+    return "none yet" if not math.isfinite(width) else f"{100 * width:.3g} %"
