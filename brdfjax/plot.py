@@ -22,6 +22,8 @@ import numpy as np
 # projector or in print (issue 26: the old 0.3 / 0.15 / 0.08 were faint).
 BAND_ALPHA = {"68": 0.45, "95": 0.25}
 PREDICTIVE_ALPHA = 0.14
+# Line width of the posterior's median curve in `plot_fit`, thinner than the fit's 1.5.
+MEDIAN_WIDTH = 0.7
 
 
 def _pyplot():
@@ -55,7 +57,7 @@ def curve_angles(incidence_deg: float, count: int = 361):
 
 
 def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: bool = False,
-             model=None, predictive=None, errors=None):
+             model=None, predictive=None, errors=None, bands_method: str = "", note: str = ""):
     """Data points and fitted curves of f_r cos(theta_r), one colour per incidence.
 
     Args:
@@ -64,8 +66,11 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
         path: output image file (PNG, PDF or SVG by suffix).
         title: figure title.
         held_out: incidences (deg) not used in the fit, drawn hollow and dashed.
-        bands: optional ``{incidence: (signed_deg, lo68, hi68, lo95, hi95)}`` to shade: the
-            curve bands, named in the legend.
+        bands: optional ``{incidence: (signed_deg, lo68, hi68, lo95, hi95[, median])}`` to
+            shade: the posterior's bands of the curve (`brdfjax.uncertainty.bands.CurveBand`),
+            named in the legend; their median, the curve they are about, is drawn thin.
+        bands_method: the method the bands come from (laplace, mcmc), named in the legend.
+        note: a sentence shown under the title (why the fit leaves its bands, say).
         predictive: predictive bands (drawn under the others, lightest, named in the
             legend), ``{incidence: (signed_deg, prediction, lo68, hi68, lo95, hi95)}``; the
             prediction is drawn dotted where it differs from the model curve (a learned
@@ -114,14 +119,20 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
                 corrected = True
                 ax.plot(x, centre, ":", color=colour, lw=1.5)
         if bands and incidence in bands:
-            x, lo68, hi68, lo95, hi95 = bands[incidence]
+            x, lo68, hi68, lo95, hi95, *median = bands[incidence]
             ax.fill_between(x, lo95, hi95, color=colour, alpha=BAND_ALPHA["95"], lw=0)
             ax.fill_between(x, lo68, hi68, color=colour, alpha=BAND_ALPHA["68"], lw=0)
+            if median and median[0] is not None:
+                ax.plot(x, median[0], "-", color=colour, lw=MEDIAN_WIDTH)
     ax.set_xlabel("reflection angle theta_r (deg; > 0: specular side, < 0: source side)")
     ax.set_ylabel("f_r cos(theta_r)  (1/sr)")
     if log:
         ax.set_yscale("log")
-    ax.set_title(textwrap.fill(title or data.name, 80), fontsize=10)
+    if note:
+        fig.suptitle(textwrap.fill(title or data.name, 80), fontsize=10)
+        ax.set_title(textwrap.fill(note, 110), fontsize=8, color="0.25")
+    else:
+        ax.set_title(textwrap.fill(title or data.name, 80), fontsize=10)
     handles, _ = ax.get_legend_handles_labels()
     # The shades are named in the legend, so no title has to say "lighter" or "darker".
     from matplotlib.lines import Line2D
@@ -139,10 +150,13 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
         handles.append(Line2D([], [], ls="-.", color=shade, lw=1.5,
                               label=f"fitted {name} model at an incidence not measured"))
     if bands:
-        handles += [Patch(color=shade, alpha=BAND_ALPHA["68"], lw=0,
-                          label="68 % band of the fitted curve"),
-                    Patch(color=shade, alpha=BAND_ALPHA["95"], lw=0,
-                          label="95 % band of the fitted curve")]
+        method = f" ({bands_method})" if bands_method else ""
+        handles += [Patch(color=shade, alpha=BAND_ALPHA[level], lw=0,
+                          label=f"{level} % band of the posterior's curves{method}")
+                    for level in ("68", "95")]
+        if any(len(band) > 5 and band[5] is not None for band in bands.values()):
+            handles.append(Line2D([], [], ls="-", color=shade, lw=MEDIAN_WIDTH,
+                                  label="posterior median curve (the bands' centre)"))
     if predictive:
         handles.append(Patch(color=shade, alpha=PREDICTIVE_ALPHA, lw=0,
                              label="95 % predictive band (a new measurement)"))
@@ -154,7 +168,8 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
               bbox_to_anchor=(0.5, -0.14), frameon=False)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    # "tight": the legend below the axes grows with the incidences and is never cut off.
+    fig.savefig(path, dpi=120, bbox_inches="tight", pad_inches=0.15)
     plt.close(fig)
     return fig
 

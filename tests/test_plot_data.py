@@ -92,8 +92,8 @@ def test_fit_curves_pass_through_the_peaks_and_bands_are_named_not_faint(tmp_pat
     (ax,) = figure.axes
     legend = {t.get_text(): h for t, h in zip(ax.get_legend().get_texts(),
                                                ax.get_legend().legend_handles)}
-    alpha = [legend[k].get_alpha() for k in ("68 % band of the fitted curve",
-                                             "95 % band of the fitted curve",
+    alpha = [legend[k].get_alpha() for k in ("68 % band of the posterior's curves",
+                                             "95 % band of the posterior's curves",
                                              "95 % predictive band (a new measurement)")]
     assert alpha == sorted(alpha, reverse=True) and alpha[1] >= 0.2  # visible, not faint
     # the legend stands below the axes: inside, it covered the first incidences' peaks
@@ -159,3 +159,32 @@ def test_prediction_bands_are_drawn_down_to_their_lower_edge(tmp_path):
         lowest = band.get_paths()[0].vertices[:, 1].min()
         assert lowest == pytest.approx(bottom if ax.get_title().startswith("negative")
                                        else np.min(0.2 * centre * cos_r), rel=1e-9)
+
+
+def test_fit_bands_name_the_posterior_and_draw_its_median(tmp_path):
+    """The bands are the posterior's, not the fitted curve's (issue 47, defect 2: "68 % band
+    of the fitted curve" around a curve that left them): the legend says so and which
+    method, the curve they are about is drawn, and a note under the title says why the fit
+    leaves them."""
+    import brdfjax
+    from brdfjax.models.paper import PAPER_SAMPLES
+    from brdfjax.plot import curve_angles, plot_fit
+    from brdfjax.uncertainty.bands import CurveBand
+
+    params = PAPER_SAMPLES["white_paint"]
+    data = load(REPO / "data" / "synthetic" / "white_paint.csv").at_incidences([10])
+    angles, signed = curve_angles(10.0)
+    median = 1.2 * np.asarray(brdfjax.projected_brdf(params, *angles))
+    bands = {10.0: CurveBand(signed, 0.98 * median, 1.02 * median, 0.96 * median,
+                             1.04 * median, median)}
+    note = "The fitted curve leaves the posterior's 95 % band along 100 % of its length."
+    figure = plot_fit(data, params, tmp_path / "fit.png", bands=bands, bands_method="mcmc",
+                      note=note)
+    (ax,) = figure.axes
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert "68 % band of the posterior's curves (mcmc)" in labels
+    assert "posterior median curve (the bands' centre)" in labels
+    assert not any("fitted curve" in label for label in labels)
+    assert any(np.array_equal(line.get_ydata(), median) for line in ax.get_lines())
+    assert ax.get_title().replace("\n", " ") == note
+    assert is_png(tmp_path / "fit.png")

@@ -73,6 +73,10 @@ def register(subparsers) -> None:
     p.add_argument("--uncertainty", choices=UNCERTAINTY_METHODS, default="laplace",
                    help="laplace: Gaussian at the optimum, milliseconds (default); mcmc: "
                         "emcee posterior samples, seconds; none: no intervals")
+    p.add_argument("--uncertainty-table", action="store_true",
+                   help="print the uncertainty's full table (std, 68 and 95 %% intervals, "
+                        "the three strongest correlations, every warning) instead of its "
+                        "few-line summary; --json has it all either way")
     p.add_argument("--walkers", type=positive_int, default=32,
                    help="mcmc: ensemble size (default 32; at least twice the sampled "
                         "coordinates, with --model auto those of the largest model it may "
@@ -251,7 +255,7 @@ def run_fit(args) -> None:
                                if args.cv or args.predict or args.export else (None, None))
     uncertainty = estimate_uncertainty(result, data, args)
     if uncertainty is not None:
-        print(uncertainty.table(fitted=result.vector, loss=result.loss))
+        print(uncertainty_block(uncertainty, result, args.uncertainty_table))
     write_outputs(result, data, args, uncertainty, calibration, prediction)
 
 
@@ -525,6 +529,18 @@ def estimate_uncertainty(result, data, args):
                                 seed=args.seed, chain_path=args.chain)
 
 
+def uncertainty_block(uncertainty, result, full: bool = False) -> str:
+    """What ``fit`` prints of the uncertainty: a few lines, or with ``full``
+    (``--uncertainty-table``) the whole table and its warnings."""
+    if full:
+        return uncertainty.table(fitted=result.vector, loss=result.loss)
+    count = len(uncertainty.warnings)
+    said = f"its {count} warning{'s' if count != 1 else ''}, " if count else ""
+    return uncertainty.brief(fitted=result.vector, loss=result.loss,
+                             hint=f"std, 68 % intervals, {said}correlations: "
+                                  "--uncertainty-table; everything: --json")
+
+
 def write_outputs(result, data, args, uncertainty=None, calibration=None,
                   prediction=None) -> None:
     """The files asked for (--predict-out's CSV of the ``prediction`` among them), each
@@ -547,9 +563,9 @@ def write_outputs(result, data, args, uncertainty=None, calibration=None,
     if calibration is not None:
         record["prediction"] = {**calibration.to_dict(),
                                 **(prediction.to_dict() if prediction is not None else {})}
-    bands = None
+    bands, note = None, ""
     if uncertainty is not None:
-        from brdfjax.uncertainty.bands import curve_bands, reflectance_bands
+        from brdfjax.uncertainty.bands import band_note, curve_bands, reflectance_bands
 
         if args.json:
             record["uncertainty"] = uncertainty.to_dict()
@@ -559,9 +575,13 @@ def write_outputs(result, data, args, uncertainty=None, calibration=None,
         if args.plot and uncertainty.status in ("ok", "converged"):
             bands = curve_bands(uncertainty.samples, data.incidences_deg,
                                 model=result.model)
+            note = band_note(uncertainty, bands)
+            if note:
+                print(f"plot: {note}")
         elif args.plot and data.in_plane:
             print(f"plot: no curve band drawn, the {uncertainty.method} result is "
-                  f"{uncertainty.status.replace('_', ' ')} (see its warnings above)")
+                  f"{uncertainty.status.replace('_', ' ')} (why: the uncertainty line "
+                  "above)")
     if prediction is not None:
         write_atomically(args.predict_out, prediction.to_csv())
     if args.json:
@@ -586,12 +606,13 @@ def write_outputs(result, data, args, uncertainty=None, calibration=None,
         predictive = (None if calibration is None else
                       predictive_bands(result, [*data.incidences_deg, *asked], calibration))
         kinds = " and ".join(name for name, shown in (
-            ("68/95 % curve bands", bands), ("95 % predictive bands", predictive))
+            ("68/95 % posterior bands", bands), ("95 % predictive bands", predictive))
             if shown)
         replace_atomically(args.plot, lambda path: plot_fit(
             data, result.vector, path, model=result.model,
             held_out=result.validation_incidences, log=args.log, bands=bands,
-            predictive=predictive, errors=errors,
+            predictive=predictive, errors=errors, note=note,
+            bands_method=uncertainty.method if bands else "",
             title=f"{data.name}: {result.model.name} fit, E = {100 * result.error:.3g} %"
                   + (f"; {kinds}" if kinds else "")))
     if args.plot_3d:

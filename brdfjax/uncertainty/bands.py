@@ -41,6 +41,8 @@ class CurveBand(NamedTuple):
         signed_deg: signed reflection angle (> 0: specular side), degrees.
         lo68, hi68: the central 68.27 % band.
         lo95, hi95: the central 95 % band.
+        median: the pointwise median: the curve the bands are about (None where not
+            computed).
     """
 
     signed_deg: np.ndarray
@@ -48,6 +50,7 @@ class CurveBand(NamedTuple):
     hi68: np.ndarray
     lo95: np.ndarray
     hi95: np.ndarray
+    median: np.ndarray | None = None
 
 
 class ReflectanceBands(NamedTuple):
@@ -122,9 +125,51 @@ def curve_bands(samples, incidences_deg, *, count: int = 361, draws: int = CURVE
     model = model_for(np.asarray(samples)[0], model, constants)
     geometry = model.geometry(*angles, in_plane=True)
     values = np.asarray(_curves(jnp.asarray(subsample(samples, draws, seed)), geometry, model))
-    bands = quantile_bands(values.reshape(values.shape[0], len(incidences), count))
+    values = values.reshape(values.shape[0], len(incidences), count)
+    bands = (*quantile_bands(values), np.median(values, axis=0))
     return {deg: CurveBand(scans[k][1], *(band[k] for band in bands))
             for k, deg in enumerate(incidences)}
+
+
+# The share of the fitted curve outside the posterior's 95 % band (`share_outside`) above
+# which `band_note` says so: the 95 % band itself leaves out 5 % of the posterior's curves.
+NOTED_SHARE = 0.05
+
+
+def band_note(uncertainty, bands: dict) -> str:
+    """A sentence when the fit an `~brdfjax.uncertainty.result.UncertaintyResult` came from
+    leaves the posterior's 95 % ``bands`` along more than `NOTED_SHARE` of its curves, with
+    why (`~brdfjax.uncertainty.result.UncertaintyResult.fit_note`); else ""."""
+    if uncertainty.fitted is None or not bands:
+        return ""
+    share = share_outside(bands, uncertainty.fitted, uncertainty.model)
+    if share <= NOTED_SHARE:
+        return ""
+    note = uncertainty.fit_note(uncertainty.fitted, uncertainty.fitted_loss)
+    return (f"The fitted curve leaves the posterior's 95 % band along {100 * share:.0f} % of "
+            f"its length: {note[0].lower()}{note[1:]}.")
+
+
+def share_outside(bands: dict, params, model: str | Model | None = None,
+                  constants=None) -> float:
+    """The share of a curve's points, over every scan of ``bands`` (`curve_bands`), that lie
+    outside the 95 % band: how far the curve of ``params`` (the fit) and the posterior's
+    bands disagree (0 where the curve runs inside them everywhere).
+
+    Args:
+        bands: ``{incidence: CurveBand}``.
+        params: the parameters (P,) of the curve.
+        model, constants: as for `curve_bands`.
+    """
+    model = model_for(np.asarray(params, dtype=float), model, constants)
+    outside, total = 0, 0
+    for incidence, band in bands.items():
+        angles, _ = curve_angles(incidence, len(band.signed_deg))
+        curve = np.asarray(_curves(jnp.asarray(params, dtype=float)[None],
+                                   model.geometry(*angles, in_plane=True), model))[0]
+        outside += int(np.sum((curve < band.lo95) | (curve > band.hi95)))
+        total += curve.size
+    return outside / max(total, 1)
 
 
 @stage

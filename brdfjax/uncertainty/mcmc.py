@@ -272,8 +272,11 @@ def _mcmc_result(sampler, post: Posterior, tau, chain_path, timings,
     stats = summarize(samples)
     messages = []
     status = "converged"
+    reasons = []
     if not _converged(tau, steps):
         status = "not_converged"
+        reasons.append(f"{steps / np.max(tau):.3g} autocorrelation times, fewer than "
+                       f"{AUTOCORRELATION_LENGTHS}")
         messages.append(
             f"the chain did not converge: {steps} steps is "
             f"{steps / np.max(tau):.3g} autocorrelation times (max tau {np.max(tau):.3g}), "
@@ -302,6 +305,7 @@ def _mcmc_result(sampler, post: Posterior, tau, chain_path, timings,
         "acceptance_fraction_min": float(np.min(acceptance)),
         "steps_per_tau": float(steps / np.max(tau)),
         "chain_path": None if chain_path is None else str(chain_path),
+        "reasons": reasons,
     }
     return UncertaintyResult(
         method="mcmc", status=status, warnings=messages, median=stats["median"],

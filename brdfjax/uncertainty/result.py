@@ -11,7 +11,7 @@ import numpy as np
 from brdfjax.fitting.fit import FitResult
 from brdfjax.fitting.objective import projected
 from brdfjax.models import Model
-from brdfjax.models.bounds import Bounds, default_bounds, from_unit
+from brdfjax.models.bounds import Bounds, default_bounds, from_unit, to_unit
 from brdfjax.models.paper import FIVE
 from brdfjax.uncertainty.likelihood import NOISE_NAMES, Posterior
 
@@ -38,6 +38,14 @@ ABOUT = ("the intervals are about the posterior median, whose likelihood weights
 
 # The explanatory lines of `UncertaintyResult.table` wrap here: the width of its rows.
 TABLE_WIDTH = 92
+
+# `UncertaintyResult.brief` names the most correlated pair when its correlation is at least
+# this strong (the white paint's a-b, 0.98, and the AnoBlack coating's kd-kb, -0.994).
+STRONG_CORRELATION = 0.95
+
+# Distance of a unit-cube coordinate from 0 or 1 below which a value is at its bound (as
+# `brdfjax.fitting.fit.FitResult.at_bounds` counts it).
+AT_BOUND = 1e-6
 
 
 class UncertaintyWarning(UserWarning):
@@ -163,6 +171,8 @@ class UncertaintyResult:
             "timings": self.timings,
             "about": ABOUT,
             "fit_outside_ci95": [] if self.fitted is None else self.fit_outside(),
+            "fit_note": None if self.fitted is None else self.fit_note(self.fitted,
+                                                                      self.fitted_loss),
         }
 
     def fit_outside(self, fitted=None) -> list:
@@ -170,6 +180,88 @@ class UncertaintyResult:
         fitted = self.fitted if fitted is None else np.asarray(fitted, dtype=float)
         return [name for k, name in enumerate(self.model.names)
                 if not self.ci95[k][0] <= fitted[k] <= self.ci95[k][1]]
+
+    def fit_at_bounds(self, fitted=None) -> list:
+        """Names of the parameters whose fitted value lies on a bound of the box."""
+        fitted = self.fitted if fitted is None else np.asarray(fitted, dtype=float)
+        unit = np.asarray(to_unit(np.asarray(fitted, dtype=float), self.bounds))
+        return [name for name, z in zip(self.model.names, unit)
+                if min(z, 1 - z) < AT_BOUND]
+
+    def brief(self, fitted=None, loss: str | None = None, hint: str = "") -> str:
+        """The uncertainty in a few lines (what ``brdfjax fit`` prints; `table` has the rest).
+
+        The status and, when not ``ok``/``converged``, its short reasons; each parameter's
+        posterior median and 95 % interval; whether the ``fitted`` parameters (the fit this
+        result came from when not given) lie inside those intervals, and if not why
+        (`fit_note`); the strongest correlation when it is at least `STRONG_CORRELATION`;
+        then ``hint``, a last line (the CLI's pointer to the full table).
+        """
+        fitted, loss = self._fitted_and_loss(fitted, loss)
+        reasons = self.diagnostics.get("reasons") or []
+        status = self.status + (f": {'; '.join(reasons)}" if reasons else "")
+        trusted = self.status in ("ok", "converged")
+        lines = [f"uncertainty ({self.method}, {status}); noise: {self._noise_text()}"]
+        lines.append(_wrap(("posterior median [95 % interval]" if trusted else
+                            "posterior median [95 % interval], not to be trusted as they are")
+                           + ": " + ", ".join(
+                               f"{name} {self.median[k]:.3g} [{self.ci95[k][0]:.3g}, "
+                               f"{self.ci95[k][1]:.3g}]"
+                               for k, name in enumerate(self.model.names))))
+        if fitted is not None:
+            lines.append(_wrap(self.fit_note(fitted, loss)))
+        pair = self.strongest_pairs(1)
+        if pair and abs(pair[0][2]) >= STRONG_CORRELATION:
+            first, second, value = pair[0]
+            lines.append(f"  {first} and {second} are determined together (correlation "
+                         f"{value:+.3f}): read them as a pair")
+        return "\n".join(lines + ([_wrap(hint)] if hint else []))
+
+    def fit_note(self, fitted, loss: str = "eq6") -> str:
+        """One sentence: whether the fitted parameters lie inside the 95 % intervals, and if
+        not, why the two estimates differ (the likelihood's weights; a fitted parameter
+        pressed against its bound)."""
+        label = "the Eq. (6) fit" if loss == "eq6" else f"the fit of the {loss} loss"
+        outside = self.fit_outside(fitted)
+        if not outside:
+            return f"{label} lies inside every 95 % interval"
+        index = {name: k for k, name in enumerate(self.model.names)}
+        pressed = [name for name in self.fit_at_bounds(fitted) if name in outside]
+        bound = ("; the fit's " + ", ".join(f"{name} = {fitted[index[name]]:.3g} sits at a "
+                                            f"bound, the posterior's at "
+                                            f"{self.median[index[name]]:.3g}"
+                                            for name in pressed)) if pressed else ""
+        weights = ("weights every point alike" if loss == "eq6" else
+                   f"minimises the {loss} loss")
+        relative = self.noise.get("sigma_rel", {}).get("median")
+        noise = f" (relative noise {100 * relative:.2g} %)" if relative else ""
+        return (f"{label} lies outside the 95 % intervals of {', '.join(outside)}{bound}: it "
+                f"{weights}, the posterior by 1 / variance{noise}: report the posterior's")
+
+    def strongest_pairs(self, count: int = 3) -> list:
+        """The ``count`` most correlated pairs of parameters, ``(name, name, correlation)``,
+        strongest first."""
+        names, size = self.model.names, len(self.model.names)
+        pairs = sorted(((abs(self.correlation[i, j]), i, j) for i in range(size)
+                        for j in range(i + 1, size)), reverse=True)[:count]
+        return [(names[i], names[j], float(self.correlation[i, j])) for _, i, j in pairs]
+
+    def _fitted_and_loss(self, fitted, loss):
+        """The fitted parameters and their loss: those given, else this result's own."""
+        if fitted is None:
+            return self.fitted, loss or self.fitted_loss
+        return np.asarray(fitted, dtype=float), loss or "eq6"
+
+    def _noise_text(self) -> str:
+        """The noise model and each inferred scale's median and 95 % interval."""
+        noise = self.noise["model"]
+        for name in NOISE_NAMES:
+            if name in self.noise:
+                interval = self.noise[name]["ci95"]
+                noise += (f", {name} {self.noise[name]['median']:.3g} " +
+                          ("(at the edge of its prior)" if interval is None else
+                           f"[{interval[0]:.3g}, {interval[1]:.3g}]"))
+        return noise
 
     def table(self, fitted=None, loss: str | None = None) -> str:
         """A readable table of the intervals, the strongest correlations and any warnings.
@@ -179,16 +271,9 @@ class UncertaintyResult:
         stands beside the posterior ``median``, a fitted value outside its 95 % interval is
         marked, and the table says which of the two to report (`ABOUT`).
         """
-        if fitted is None:
-            fitted, loss = self.fitted, loss or self.fitted_loss
+        fitted, loss = self._fitted_and_loss(fitted, loss)
         loss = loss or "eq6"
-        noise = self.noise["model"]
-        for name in NOISE_NAMES:
-            if name in self.noise:
-                interval = self.noise[name]["ci95"]
-                noise += (f", {name} {self.noise[name]['median']:.3g} " +
-                          ("(at the edge of its prior)" if interval is None else
-                           f"[{interval[0]:.3g}, {interval[1]:.3g}]"))
+        noise = self._noise_text()
         names = self.model.names
         width = max(3, *map(len, names))
         label, optimum = (("Eq. 6", "the Eq. (6) optimum") if loss == "eq6" else
@@ -204,7 +289,9 @@ class UncertaintyResult:
                       ("report: the posterior median with its intervals (calibrated: "
                        "BENCHMARKS.md, uncertainty-consistency); the fit and its E to "
                        "compare with the paper")]
-        lines = [f"uncertainty ({self.method}, {self.status}); noise: {noise}"]
+        reasons = self.diagnostics.get("reasons") or []
+        status = self.status + (f": {'; '.join(reasons)}" if reasons else "")
+        lines = [f"uncertainty ({self.method}, {status}); noise: {noise}"]
         lines += [_wrap(note) for note in notes]
         lines.append(f"  {'':>{width}}{fit_header} {'median':>12} {'std':>11}   "
                      f"{'68 % interval':<27} 95 % interval")
@@ -229,12 +316,10 @@ class UncertaintyResult:
             lines.append(_wrap(f"* the fit's {', '.join(outside)} {verb} 95 % interval: "
                                "expected, the interval is about the posterior median, not "
                                f"about {optimum}"))
-        size = len(names)
-        pairs = sorted(((abs(self.correlation[i, j]), i, j) for i in range(size)
-                        for j in range(i + 1, size)), reverse=True)[:3]
+        pairs = self.strongest_pairs()
         if pairs:
             lines.append("  strongest correlations: " + ", ".join(
-                f"{names[i]}-{names[j]} {self.correlation[i, j]:+.3f}" for _, i, j in pairs))
+                f"{a}-{b} {value:+.3f}" for a, b, value in pairs))
         lines += [f"  warning: {text}" for text in self.warnings]
         return "\n".join(lines)
 
