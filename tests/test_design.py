@@ -193,3 +193,79 @@ def test_a_measured_geometry_is_left_out_whatever_its_azimuth_is_written_as():
                                          [0.3, 0.3, 0.3])
     found = check_inputs(candidates, 1, measured=measured)
     assert found.measured == 2 and found.index.tolist() == [1]
+
+
+def test_auto_plans_with_the_predictor_of_the_comparison(measured, monkeypatch):
+    # auto is compare_models' predictor with the learned discrepancy, at the plan's seed
+    # (as fit --model auto --predict), and the plan is the one of that model named.
+    from brdfjax.prediction import selection
+
+    asked = []
+
+    def comparison(data, models=None, *, seed=0, discrepancy="gp", **_):
+        asked.append((len(data), models, seed, discrepancy))
+        return types.SimpleNamespace(predictor=types.SimpleNamespace(name="lambert"))
+
+    monkeypatch.setattr(selection, "compare_models", comparison)
+    grid = instrument_grid()
+    chosen, named = plan(measured, grid, 4, model="auto", seed=1), \
+        plan(measured, grid, 4, model="lambert", seed=1)
+    assert asked == [(len(measured), None, 1, "gp")]
+    assert chosen.model == "lambert" and chosen.auto and not named.auto
+    assert "lambert (chosen by --model auto)" in chosen.summary()[0]
+    assert np.array_equal(np.c_[chosen.theta_i, chosen.theta_r, chosen.phi_r],
+                          np.c_[named.theta_i, named.theta_r, named.phi_r])
+
+
+@pytest.mark.slow
+def test_auto_chooses_the_model_the_data_were_made_with(measured, monkeypatch):
+    # The white paint is the paper's model with 2.5 % noise: of it and a constant, auto
+    # chooses the paper's model (not the default ggx). 30 s cold, hence slow.
+    from brdfjax.prediction import selection
+    from brdfjax.prediction.design import auto_model
+
+    monkeypatch.setattr(selection, "DEFAULT_CANDIDATES", ("lambert", "five"))
+    assert auto_model(measured, seed=1) == "five"
+    assert plan(measured, instrument_grid(), 2, model="auto", seed=1).model == "five"
+
+
+def test_auto_needs_three_incidences(measured, tmp_path, capsys):
+    two = measured.at_incidences(measured.incidences_deg[:2])
+    with pytest.raises(ValueError, match="auto: chooses by cross-validation .* has 2"):
+        plan(two, instrument_grid(), 3, model="auto")
+    from brdfjax.data.formats import save
+
+    save(two, tmp_path / "two.csv")
+    assert main(["plan", str(tmp_path / "two.csv"), "--budget", "3", "--model", "auto",
+                 "--out", str(tmp_path / "next")]) == 1
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--model auto: chooses by cross-validation" in err
+    assert not list(tmp_path.glob("next*"))
+
+
+def test_planning_runs_with_one_blas_thread_and_puts_the_count_back():
+    from brdfjax.prediction.design import _openblas_controls, one_blas_thread
+
+    controls = _openblas_controls()
+    if not controls:
+        pytest.skip("no OpenBLAS found beside NumPy and SciPy (another BLAS)")
+    (get, set_threads), saved = controls[0], controls[0][0]()
+    try:
+        set_threads(2)
+        with pytest.raises(RuntimeError), one_blas_thread():
+            assert [g() for g, _ in controls] == [1] * len(controls)
+            raise RuntimeError
+        assert get() == 2
+    finally:
+        set_threads(saved)
+
+
+def test_the_kernel_on_few_incidences_equals_the_process_kernel():
+    # The incidence factor is taken once per pair of distinct incidences, then spread.
+    rng = np.random.default_rng(5)
+    process, _, _ = _process()
+    x1, x2 = rng.uniform(0, 1.2, (30, 3)), rng.uniform(0, 1.2, (45, 3))
+    x1[:, -1] = rng.choice([0.2, 0.5, 0.9], 30)
+    x2[:, -1] = rng.choice([0.2, 0.7, 0.9, 1.2], 45)
+    assert np.allclose(process_kernel(process)(x1, x2),
+                       np.asarray(_kernel(process._u, 3)(x1, x2)), rtol=1e-12, atol=1e-14)

@@ -35,7 +35,8 @@ def register(subparsers) -> None:
                    help="writes NEXT.csv and NEXT.toml")
     p.add_argument("--model", default="ggx", metavar="NAME",
                    help="the model whose discrepancy is learned from MEASURED (default ggx; "
-                        "as in fit, but not auto yet)")
+                        "as in fit; auto chooses it as fit --model auto --predict does, "
+                        "from readings at 3 or more incidences)")
     p.add_argument("--seed", type=int, default=0,
                    help="seeds the fit and the space-filling design (default 0)")
     add_reader_options(p)

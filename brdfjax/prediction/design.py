@@ -41,6 +41,19 @@ isotropic BRDF cannot tell apart (every azimuth at normal incidence) are one poi
 known weakness: it takes the edges of the domain (grazing angles, the extreme
 incidences) first and fills the inside after.
 
+**The model.** ``model="auto"`` chooses it as ``brdfjax fit --model auto --predict`` does
+(`auto_model`: `brdfjax.prediction.selection.compare_models` with the learned discrepancy,
+then `~brdfjax.prediction.selection.Comparison.predictor`, the one-standard-error rule on
+each model's cross-validation corrected by its discrepancy); it needs readings at three
+incidences or more.
+
+**Threads.** The planning runs with one BLAS thread (`one_blas_thread`): the process's
+Cholesky factorisations (JAX's CPU LAPACK calls, SciPy's OpenBLAS) and the design's matrix
+products (NumPy's OpenBLAS) are small enough that a second thread gains little, and on a
+loaded machine OpenBLAS's waiting threads took the cores from the work: planning 20 readings
+from 300 among 5000 candidates took 3.8-10.8 s warm with OpenBLAS's default two threads
+and 0.7-0.9 s with one, on two cores shared with other jobs (load average 4-5).
+
 Candidates the instrument cannot reach (`brdfjax.instrument.plan.unreachable`: a motor past
 its range, the detector in the source beam) are left out, and so are geometries already
 measured and a candidate's repeats: a plan never proposes a reading twice.
@@ -59,6 +72,11 @@ if it is shorter, so the route is never slower. The sample changer swaps once pe
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
+import functools
+import glob
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -94,6 +112,7 @@ class Plan:
             ``theta_r``).
         changer_seconds: the sample changer's time, one swap per reading (any order).
         discrepancy: the fitted process (``alc``), or None.
+        auto: whether ``model`` was chosen by ``model="auto"`` (`auto_model`).
     """
 
     theta_i: np.ndarray
@@ -111,6 +130,7 @@ class Plan:
     sweep_motor_seconds: float
     changer_seconds: float
     discrepancy: object = field(default=None, repr=False)
+    auto: bool = False
 
     def __len__(self) -> int:
         return self.theta_i.size
@@ -141,7 +161,9 @@ class Plan:
     def summary(self) -> list[str]:
         """What the plan is, in a few lines."""
         if self.method == "alc":
-            how = (f"chosen by integrated variance (ALC) of {self.model} x its discrepancy "
+            chosen = " (chosen by --model auto)" if self.auto else ""
+            how = (f"chosen by integrated variance (ALC) of {self.model}{chosen} x its "
+                   "discrepancy "
                    f"over {self.region_points} region points, from {self.measured} readings: "
                    f"the process's mean variance over the region {self.variance_before:.3g} "
                    f"-> {self.variance_after:.3g} (sd {np.sqrt(self.variance_before):.3g} -> "
@@ -188,8 +210,9 @@ def plan(measured: Measurements | None, candidates: Measurements, budget: int, *
         budget: how many readings to choose (at least 1).
         region: where the prediction is wanted (default: the candidates); every point must
             be within the instrument's reach.
-        model: the model whose discrepancy is learned (a name of `brdfjax.models.available`;
-            ``auto`` is not supported yet).
+        model: the model whose discrepancy is learned: a name of
+            `brdfjax.models.available`, or ``auto`` to choose it as ``brdfjax fit --model
+            auto --predict`` does (`auto_model`; readings at three incidences or more).
         seed: seeds the fit and the space-filling design's first point.
 
     Returns:
@@ -199,6 +222,13 @@ def plan(measured: Measurements | None, candidates: Measurements, budget: int, *
         ValueError: bad input (checked before any work; `check_inputs`).
     """
     found = check_inputs(candidates, budget, region=region, measured=measured, model=model)
+    with one_blas_thread():
+        return _plan(measured, candidates, found, budget, region=region, model=model,
+                     seed=seed)
+
+
+def _plan(measured, candidates, found: Candidates, budget, *, region, model, seed) -> Plan:
+    """`plan` of checked inputs."""
     chosen_angles = np.degrees([candidates.theta_i, candidates.theta_r, candidates.phi_r])
     index = found.index
     if measured is None:
@@ -216,7 +246,21 @@ def plan(measured: Measurements | None, candidates: Measurements, budget: int, *
     return Plan(ti[order], tr[order], pr[order], "maximin" if measured is None else "alc",
                 fitted_model, index.size, found.unreachable,
                 0 if measured is None else len(measured), region_points, before, after,
-                seconds, sweep, CHANGER_SECONDS * len(order), process)
+                seconds, sweep, CHANGER_SECONDS * len(order), process,
+                measured is not None and model == "auto")
+
+
+def auto_model(measured: Measurements, seed: int = 0) -> str:
+    """The model ``brdfjax fit --model auto --predict`` chooses for ``measured``: every
+    model of `brdfjax.prediction.selection.DEFAULT_CANDIDATES` fitted and cross-validated
+    with its learned discrepancy (`~brdfjax.prediction.selection.compare_models`), then
+    `~brdfjax.prediction.selection.Comparison.predictor`. ``measured`` needs readings at
+    three incidences or more. ``plan(model="auto")`` calls it; so may a loop that plans
+    batch after batch."""
+    from brdfjax.prediction.selection import compare_models
+
+    with one_blas_thread():
+        return compare_models(measured, seed=seed, discrepancy="gp").predictor.name
 
 
 def check_inputs(candidates: Measurements, budget, *, region: Measurements | None = None,
@@ -248,11 +292,16 @@ def check_inputs(candidates: Measurements, budget, *, region: Measurements | Non
                              "measurements needs at least 3 (give none for a space-filling "
                              "start)")
         if model == "auto":
-            raise ValueError(f"{names['model']} auto: not supported by plan yet; name a "
-                             "model (ggx, the default, predicts best on most real data)")
-        from brdfjax.models import get
+            incidences = np.unique(np.round(np.degrees(measured.theta_i), 6)).size
+            if incidences < 3:
+                raise ValueError(f"{names['model']} auto: chooses by cross-validation over "
+                                 f"incidences and needs readings at 3 or more; "
+                                 f"{names['measured']} has {incidences}: name a model (ggx, "
+                                 "the default, predicts best on most real data)")
+        else:
+            from brdfjax.models import get
 
-        get(model)  # an unknown name fails here, before the fit
+            get(model)  # an unknown name fails here, before the fit
     if region is not None:
         if len(region) == 0:
             raise ValueError(f"{names['region']}: no geometries")
@@ -400,7 +449,7 @@ def integrated_variance_design(kernel, prior_variance: float, noise: float, know
         whitened_c = np.zeros((0, len(candidates)))
     free = np.ones(len(candidates), bool) if available is None else np.array(available, bool)
     before = float(variance_r.sum())
-    squares = np.sum(cross**2, axis=0)  # sum_r k(r, c)^2 of the current posterior
+    squares = np.einsum("rc,rc->c", cross, cross)  # sum_r k(r, c)^2 of the posterior
     updates_r, updates_c, picks, drops = [], [], [], []
     for _ in range(budget):
         drop = np.maximum(squares, 0.0) / (np.maximum(variance_c, 0.0) + noise2)
@@ -445,18 +494,36 @@ def process_kernel(process):
     _, amplitude, lengths, share, _ = (np.asarray(v) for v in _physical(
         np.asarray(process._u), process._x.shape[1]))
 
-    def squared(x1, x2):
-        distance = (np.sum(x1**2, axis=1)[:, None] + np.sum(x2**2, axis=1)[None, :]
-                    - 2 * x1 @ x2.T)
-        return np.maximum(distance, 0.0)
-
     def kernel(x1, x2):
         x1, x2 = (np.asarray(x, float) / lengths for x in (x1, x2))
-        angles = np.exp(-0.5 * squared(x1[:, :-1], x2[:, :-1]))
-        incidence = np.exp(-0.5 * (x1[:, -1:] - x2[:, -1:].T) ** 2)
-        return amplitude**2 * angles * (share + (1 - share) * incidence)
+        out = _squared_distances(x1[:, :-1], x2[:, :-1])
+        out *= -0.5
+        np.exp(out, out=out)
+        out *= _incidence_factor(x1[:, -1], x2[:, -1], float(share))
+        out *= amplitude**2
+        return out
 
     return kernel
+
+
+def _squared_distances(x1, x2) -> np.ndarray:
+    """``|x1_i - x2_j|^2`` (N, M) by a matrix product, in place (no temporaries of the
+    output's size), at least 0."""
+    out = x1 @ x2.T
+    out *= -2.0
+    out += np.sum(x1**2, axis=1)[:, None]
+    out += np.sum(x2**2, axis=1)[None, :]
+    return np.maximum(out, 0.0, out=out)
+
+
+def _incidence_factor(t1, t2, share: float) -> np.ndarray:
+    """``share + (1 - share) exp(-(t1_i - t2_j)^2 / 2)`` (N, M) for scaled incidences: the
+    exponential taken once per pair of distinct incidences (a goniometer has few), then
+    spread by index."""
+    u1, i1 = np.unique(t1, return_inverse=True)
+    u2, i2 = np.unique(t2, return_inverse=True)
+    table = share + (1 - share) * np.exp(-0.5 * (u1[:, None] - u2[None, :]) ** 2)
+    return table[i1[:, None], i2[None, :]]
 
 
 def _alc_plan(measured, candidates, index, budget, *, region, model, seed):
@@ -473,6 +540,8 @@ def _alc_plan(measured, candidates, index, budget, *, region, model, seed):
         subsample,
     )
 
+    if model == "auto":
+        model = auto_model(measured, seed=seed)
     result = fit(measured, model=model, seed=seed)
     values = np.asarray(brdf_values(result.vector, prepare(measured, result.model),
                                     result.model))
@@ -495,6 +564,58 @@ def _alc_plan(measured, candidates, index, budget, *, region, model, seed):
     picks = np.searchsorted(index, pool[design["picks"]])
     return (picks, design["before"] / where.size, design["after"] / where.size, where.size,
             process, result.model.name)
+
+
+@contextlib.contextmanager
+def one_blas_thread():
+    """Run the body with one thread in NumPy's and SciPy's OpenBLAS (the number each had is
+    put back after), where their libraries can be found; else as they are (see the module
+    docstring, 'Threads')."""
+    controls = _openblas_controls()
+    before = [get() for get, _ in controls]
+    for _, set_threads in controls:
+        set_threads(1)
+    try:
+        yield
+    finally:
+        for (_, set_threads), count in zip(controls, before):
+            set_threads(count)
+
+
+_OPENBLAS_THREADS = [("scipy_openblas_get_num_threads64_", "scipy_openblas_set_num_threads64_"),
+                     ("scipy_openblas_get_num_threads", "scipy_openblas_set_num_threads"),
+                     ("openblas_get_num_threads", "openblas_set_num_threads")]
+
+
+@functools.cache
+def _openblas_controls() -> tuple:
+    """``(get, set)`` thread-count functions of the OpenBLAS libraries that the NumPy and
+    SciPy wheels bundle (``numpy.libs``, ``scipy.libs``; ``.dylibs`` on macOS), found once."""
+    import scipy
+
+    found = []
+    for module in (np, scipy):
+        package = os.path.dirname(module.__file__)
+        folders = [f"{package}.libs", os.path.join(package, ".dylibs")]
+        for path in sorted(p for folder in folders for p in glob.glob(f"{folder}/*openblas*")):
+            found += _thread_functions(path)
+    return tuple(found)
+
+
+def _thread_functions(path: str) -> list:
+    """The first ``(get, set)`` pair of `_OPENBLAS_THREADS` that the library at ``path``
+    exports, as a one-item list, or an empty one."""
+    try:
+        library = ctypes.CDLL(path)
+    except OSError:
+        return []
+    for get_name, set_name in _OPENBLAS_THREADS:
+        get, set_threads = (getattr(library, name, None) for name in (get_name, set_name))
+        if get is not None and set_threads is not None:
+            get.restype = ctypes.c_int
+            set_threads.argtypes = [ctypes.c_int]
+            return [(get, set_threads)]
+    return []
 
 
 def _keys(data: Measurements) -> np.ndarray:
