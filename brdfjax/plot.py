@@ -217,7 +217,9 @@ def plot_prediction_bands(held, predictions: dict, path, title: str = ""):
     axes[0][0].legend(fontsize=8, loc="lower center")
     fig.suptitle(textwrap.fill(title, 100), fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    # "tight": a marker at the figure's edge (the legend's, a point at the last angle) is
+    # never cut off
+    fig.savefig(path, dpi=120, bbox_inches="tight", pad_inches=0.1)
     plt.close(fig)
     return fig
 
@@ -352,7 +354,20 @@ def plot_polar_maps(data, predicted, path, title: str = "", max_rows: int = 6):
     plt.close(fig)
 
 
-def plot_spectral(records, path, names, title: str = ""):
+# Units of the parameters whose unit is known, for axis labels: the paper's model's weights
+# scale f_r (1/sr); its a and b are exponents.
+PARAMETER_UNITS = {"kb": "1/sr", "kr": "1/sr", "kd": "1/sr", "a": "dimensionless",
+                   "b": "dimensionless"}
+
+
+def figure_title(sample: str, model: str = "", what: str = "") -> str:
+    """Every figure's title, one convention: ``SAMPLE: MODEL fit, WHAT`` (parts left out
+    where not given), e.g. ``white_paint: five fit, E = 0.026 %``."""
+    head = f"{sample}: {model} fit" if model else sample
+    return f"{head}, {what}" if what else head
+
+
+def plot_spectral(records, path, names, title: str = "", sample: str = "", model: str = ""):
     """Each fitted parameter against wavelength, with its standard error as bars.
 
     Args:
@@ -361,7 +376,8 @@ def plot_spectral(records, path, names, title: str = ""):
         path: output image file.
         names: the parameters to draw, one panel each (e.g. ``("kb", "kr", "a", "b",
             "kd")``).
-        title: figure title.
+        title: figure title (default: the sample and model, `figure_title`).
+        sample, model: the sample's and the model's names, for the default title.
     """
     plt = _pyplot()
     records = sorted(records, key=lambda r: r["wavelength_nm"])
@@ -385,11 +401,13 @@ def plot_spectral(records, path, names, title: str = ""):
         if np.all(values > 0) and values.max() > 100 * values.min():
             ax.set_yscale("log")
         ax.set_xlabel("wavelength (nm)")
-        ax.set_ylabel(name)
+        ax.set_ylabel(f"{name} ({PARAMETER_UNITS[name]})" if name in PARAMETER_UNITS
+                      else name)
         ax.grid(alpha=0.3)
     for ax in axes.flat[len(names):]:
         ax.set_visible(False)
-    fig.suptitle(title or "fitted parameters against wavelength (bars: 1 standard error)")
+    fig.suptitle(title or figure_title(sample or "parameters", model,
+                                       "against wavelength (bars: 1 standard error)"))
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
@@ -398,13 +416,22 @@ def plot_spectral(records, path, names, title: str = ""):
 def _corner_coordinates(result) -> tuple[np.ndarray, list]:
     """A result's draws in the prior's coordinates (log10 kb, asinh b, ...), labelled."""
     from brdfjax.models.bounds import scale_label, scaled
-    from brdfjax.models.paper import PARAMETER_NAMES
 
     with np.errstate(divide="ignore"):
-        values = scaled(np.asarray(result.samples, dtype=float), result.bounds)
+        values = np.asarray(scaled(np.asarray(result.samples, dtype=float), result.bounds))
     values = values[np.all(np.isfinite(values), axis=1)]
-    labels = [scale_label(n, k) for n, k in zip(PARAMETER_NAMES, result.bounds.scale)]
+    labels = [scale_label(n, k) for n, k in zip(result.model.names, result.bounds.scale)]
     return values, labels
+
+
+# Ticks on each axis of the corner plot.
+CORNER_TICKS = 3
+
+
+def _small_corner_ticks(fig) -> None:
+    """Tick labels of the corner plot in small type, so that even long ones keep apart."""
+    for ax in fig.axes:
+        ax.tick_params(labelsize=8)
 
 
 def plot_corner(results, path, title: str = "", truths=None, names=None):
@@ -430,14 +457,18 @@ def plot_corner(results, path, title: str = "", truths=None, names=None):
     coordinates = [_corner_coordinates(r) for r in results]
     labels = coordinates[0][1]
     stacked = np.concatenate([values for values, _ in coordinates])
-    span = [tuple(np.quantile(stacked[:, k], [0.0005, 0.9995])) for k in range(5)]
+    span = [tuple(np.quantile(stacked[:, k], [0.0005, 0.9995])) for k in range(len(labels))]
     colours = plt.get_cmap("tab10").colors
     fig = None
     for k, (values, _) in enumerate(coordinates):
+        # Three ticks an axis: with corner's five, long labels ran into each other
+        # ("-0.336-4.825", issue 47); matplotlib's formatter keeps them short.
         fig = corner.corner(values, fig=fig, labels=labels, range=span, color=colours[k],
                             levels=(0.393, 0.865), plot_datapoints=False,
                             plot_density=False, fill_contours=False, smooth=1.0,
-                            hist_kwargs={"density": True})
+                            hist_kwargs={"density": True}, max_n_ticks=CORNER_TICKS,
+                            labelpad=0.1)
+    _small_corner_ticks(fig)
     if truths is not None:
         from brdfjax.models.bounds import scaled
 
@@ -447,8 +478,8 @@ def plot_corner(results, path, title: str = "", truths=None, names=None):
                         for k, name in enumerate(names)]
                + ([plt.Line2D([], [], color="black", label="truth")] if truths is not None
                   else []), loc="upper right", bbox_to_anchor=(0.95, 0.9))
-    fig.suptitle(title or "posterior of kb, kr, a, b, kd")
-    fig.savefig(path, dpi=100)
+    fig.suptitle(title or f"posterior of {', '.join(results[0].model.names)}")
+    fig.savefig(path, dpi=100, bbox_inches="tight")
     plt.close(fig)
 
 
@@ -536,6 +567,12 @@ def same_curves(names, curves, count: int, rtol: float = 1e-3) -> dict:
     return {group[0]: group for group in simplest}
 
 
+def panel_columns(count: int) -> int:
+    """Columns of a grid of ``count`` panels: at most 3, and no more empty cells than
+    needed (4 panels in 2 x 2, not 2 x 3 with two empty)."""
+    return 2 if count == 4 else min(3, count)
+
+
 def plot_models(data, comparison, path, title: str = "", max_panels: int = 6,
                 max_models: int = 4):
     """The best models' fits over the data, one panel per incidence (up to ``max_panels``).
@@ -555,9 +592,10 @@ def plot_models(data, comparison, path, title: str = "", max_panels: int = 6,
     plt = _pyplot()
     folds = comparison.best.validation.folds
     panels = folds[:max_panels]
-    columns = min(3, len(panels))
+    columns = panel_columns(len(panels))
     rows = -(-len(panels) // columns)
-    fig, axes = plt.subplots(rows, columns, figsize=(4.6 * columns, 4.9 * rows), squeeze=False)
+    fig, axes = plt.subplots(rows, columns, figsize=(4.6 * columns, 4.2 * rows + 0.8),
+                             squeeze=False)
     colours = plt.get_cmap("tab10")
     scores = {s.name: s for s in comparison.scores}
     panel_angles = [curve_angles((fold.low + fold.high) / 2) for fold in panels]
@@ -576,37 +614,47 @@ def plot_models(data, comparison, path, title: str = "", max_panels: int = 6,
         subset = data.at_incidences([fold.low]) if fold.low == fold.high else data.select(
             (np.degrees(data.theta_i) >= fold.low) & (np.degrees(data.theta_i) <= fold.high))
         ax.plot(signed_angle_deg(subset), subset.brdf * np.cos(subset.theta_r), "o", ms=2.5,
-                color="0.2", label="data", zorder=3)
-        for k, (name, twins) in enumerate(shown.items()):
+                color="0.2", zorder=3)
+        held_errors = []
+        for k, name in enumerate(shown):
             score = scores[name]
             held = next(f for f in score.validation.folds if f.label == fold.label)
             colour = colours(k % 10)
-            same = f"; {', '.join(twins[1:])} the same" if len(twins) > 1 else ""
-            ax.plot(signed, curves(name)[panel], "-", color=colour, lw=1.2,
-                    label=f"{name} (held-out E {100 * held.held_error:.3g} %{same})")
+            ax.plot(signed, curves(name)[panel], "-", color=colour, lw=1.2)
             ax.plot(signed, np.asarray(projected_brdf(held.params, *angles,
                                                       model=score.fit.model)),
                     "--", color=colour, lw=1.0)
+            held_errors.append(f"{name} {100 * held.held_error:.3g}")
         kind = "" if fold.interior else ", extrapolation"
-        ax.set_title(f"incidence {fold.label} deg{kind}", fontsize=9)
+        ax.set_title(f"incidence {fold.label} deg{kind}\n"
+                     + textwrap.fill("held-out E (%): " + ", ".join(held_errors), 60),
+                     fontsize=8)
         ax.set_xlabel("theta_r (deg; > 0 specular side)", fontsize=8)
         ax.set_ylabel("f_r cos(theta_r) (1/sr)", fontsize=8)
         ax.tick_params(labelsize=7)
         ax.grid(alpha=0.3)
-        # Below the panel: inside it, the legend covered the curves of the panels whose
-        # data fill the whole width (issue 26).
-        ax.legend(fontsize=6, loc="upper center", bbox_to_anchor=(0.5, -0.17), ncol=2,
-                  frameon=False, handlelength=1.5, columnspacing=1.0)
     for ax in axes.ravel()[len(panels):]:
         ax.axis("off")
+    # One legend for every panel, below them (inside a panel it covered the curves, issue
+    # 26; under each panel it repeated itself in tiny type, issue 47); each panel's title
+    # gives the models' held-out E there.
+    handles = [plt.Line2D([], [], ls="", marker="o", ms=4, color="0.2", label="data")]
+    handles += [plt.Line2D([], [], color=colours(k % 10), lw=1.5,
+                           label=name + (f" ({', '.join(twins[1:])} the same)"
+                                         if len(twins) > 1 else ""))
+                for k, (name, twins) in enumerate(shown.items())]
+    handles += [plt.Line2D([], [], color="0.35", lw=1.2, label="fit on all incidences"),
+                plt.Line2D([], [], color="0.35", lw=1.0, ls="--",
+                           label="fit without this incidence (its prediction)")]
+    fig.legend(handles=handles, loc="lower center", ncol=min(4, len(handles)), fontsize=9,
+               frameon=False)
     drawn = (f"the {len(comparison.ranking)} models drawn"
              if sum(map(len, shown.values())) == len(comparison.ranking) else
              f"the {min(max_models, len(shown))} lowest cv_error"
              + (" and the paper's model" if len(shown) > max_models else "")
              + f" of {len(comparison.ranking)}")
-    fig.suptitle(title or f"{data.name}: {drawn}, ranked by cv_error (solid: fit on all "
-                          "incidences; dashed: fit without that incidence)", fontsize=10)
-    fig.tight_layout()
+    fig.suptitle(title or f"{data.name}: {drawn}, ranked by cv_error", fontsize=10)
+    fig.tight_layout(rect=(0, 0.7 / (4.2 * rows + 0.8), 1, 1))  # room for the legend
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return fig

@@ -188,3 +188,28 @@ def test_fit_bands_name_the_posterior_and_draw_its_median(tmp_path):
     assert any(np.array_equal(line.get_ydata(), median) for line in ax.get_lines())
     assert ax.get_title().replace("\n", " ") == note
     assert is_png(tmp_path / "fit.png")
+
+
+def test_spectral_figure_names_sample_model_and_units(monkeypatch, tmp_path):
+    """spectral.png named neither the sample nor the model and gave no units (issue 47,
+    defect 9); its title follows every figure's convention (`figure_title`)."""
+    import matplotlib.figure
+
+    from brdfjax.plot import figure_title
+
+    assert figure_title("PTFE", "five", "x") == "PTFE: five fit, x"
+
+    seen = {}
+    real = matplotlib.figure.Figure.savefig
+
+    def spy(self, *args, **kwargs):
+        seen["title"] = self._suptitle.get_text()
+        seen["labels"] = [ax.get_ylabel() for ax in self.axes if ax.get_visible()]
+        return real(self, *args, **kwargs)
+
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", spy)
+    records = [{"wavelength_nm": w, "params": {"kb": 0.1 * k + 0.1, "b": -20.0 + k}}
+               for k, w in enumerate((351, 532, 633))]
+    plot_spectral(records, tmp_path / "s.png", ["kb", "b"], sample="PTFE", model="five")
+    assert seen["title"].startswith("PTFE: five fit, against wavelength")
+    assert seen["labels"] == ["kb (1/sr)", "b (dimensionless)"]

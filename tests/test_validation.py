@@ -445,8 +445,10 @@ def test_the_model_to_predict_with_is_chosen_by_the_one_standard_error_rule():
 
 
 def test_the_models_plot_keeps_its_legends_off_the_curves(tmp_path):
-    """Each panel's legend stands outside its axes (it covered the curves of two panels)."""
-    from brdfjax.plot import plot_models
+    """One legend for the figure, below every panel (each panel's own covered its curves,
+    then repeated itself in tiny type under every panel, issue 47), and no empty panel for
+    four incidences (a 2 x 3 grid left two)."""
+    from brdfjax.plot import panel_columns, plot_models
     from brdfjax.prediction.selection import compare_models
 
     data = load(DATA / "synthetic" / "white_paint.csv")
@@ -460,19 +462,23 @@ def test_the_models_plot_keeps_its_legends_off_the_curves(tmp_path):
     canvas = FigureCanvasAgg(figure)  # the figure was closed: lay it out again to measure
     canvas.draw()
     renderer = canvas.get_renderer()
-    panels = [ax for ax in figure.axes if ax.get_legend() is not None]
+    assert not any(ax.get_legend() for ax in figure.axes)
+    (legend,) = figure.legends
+    box = legend.get_window_extent(renderer)
+    panels = [ax for ax in figure.axes if ax.axison]
     assert len(panels) == len(comparison.best.validation.folds)
     for ax in panels:
-        legend = ax.get_legend().get_window_extent(renderer)
-        assert not legend.overlaps(ax.get_window_extent(renderer)), ax.get_title()
-        assert figure.bbox.contains(legend.x0, legend.y0)  # and is not cut off
+        assert not box.overlaps(ax.get_window_extent(renderer)), ax.get_title()
+        assert "held-out E (%): " in ax.get_title()
+    assert figure.bbox.contains(box.x0, box.y0) and figure.bbox.contains(box.x1, box.y1)
     assert (tmp_path / "models.png").stat().st_size > 20000
     # only the best models are drawn (ten hid the data), the paper's model always
-    labels = [t.get_text() for t in panels[0].get_legend().get_texts()]
-    assert [label.split()[0] for label in labels] == ["data", "five", "lambert"]
+    labels = [t.get_text() for t in legend.get_texts()]
+    assert [label.split()[0] for label in labels] == ["data", "five", "lambert", "fit", "fit"]
     one = plot_models(data, comparison, tmp_path / "one.png", max_models=1)
-    drawn = [t.get_text().split()[0] for t in one.axes[0].get_legend().get_texts()]
-    assert drawn == ["data", "five"] and "the 1 lowest cv_error of 2" in one.texts[0].get_text()
+    drawn = [t.get_text().split()[0] for t in one.legends[0].get_texts()]
+    assert drawn[:2] == ["data", "five"] and "the 1 lowest cv_error of 2" in one.texts[0].get_text()
+    assert [panel_columns(n) for n in range(1, 8)] == [1, 2, 3, 2, 3, 3, 3]
 
 
 def test_the_models_plot_draws_models_that_fit_alike_once():

@@ -417,7 +417,7 @@ def run_batch(args) -> int:
     finally:
         progress.close()
     if args.plot:
-        _plot_spectral(args.plot, [rows[key] for key in files if key in rows], model.names)
+        _plot_spectral(args.plot, [rows[key] for key in files if key in rows], model)
         print(f"wrote {args.plot}", file=sys.stderr)
     return _summary(rows, files, lost, model, args.out)
 
@@ -548,9 +548,12 @@ def json_name(key: str) -> str:
     return Path(file).stem + ("" if wavelength is None else f"_{wavelength:g}nm")
 
 
-def _plot_spectral(path, rows, names) -> None:
+def _plot_spectral(path, rows, model) -> None:
     from brdfjax.data.formats import replace_atomically
     from brdfjax.plot import plot_spectral
+
+    names = model.names
+    samples = sorted({Path(r["file"]).stem for r in rows})
 
     def number(text):
         return float(text) if text not in ("", None) else None
@@ -560,7 +563,8 @@ def _plot_spectral(path, rows, names) -> None:
                 "std": {k: number(r.get(f"std_{k}")) for k in names}}
                for r in rows if r["status"] != "failed" and r["wavelength_nm"] != ""]
     if records:
-        replace_atomically(path, lambda out: plot_spectral(records, out, names))
+        replace_atomically(path, lambda out: plot_spectral(
+            records, out, names, sample=", ".join(samples[:3]), model=model.name))
 
 
 def _local_devices() -> list:

@@ -616,19 +616,20 @@ def write_outputs(result, data, args, uncertainty=None, calibration=None,
             title=f"{data.name}: {result.model.name} fit, E = {100 * result.error:.3g} %"
                   + (f"; {kinds}" if kinds else "")))
     if args.plot_3d:
-        from brdfjax.plot import plot_hemisphere
+        from brdfjax.plot import figure_title, plot_hemisphere
 
         incidences = data.incidences_deg  # spread over the data's range by default
         incidences = (args.incidences_3d if args.incidences_3d is not None else incidences[
             np.unique(np.round(np.linspace(0, len(incidences) - 1, 3)).astype(int))])
         replace_atomically(args.plot_3d, lambda path: plot_hemisphere(
-            result.vector, incidences, path, title=f"{data.name}: fitted {result.model.name} "
-                                                   "model", model=result.model))
+            result.vector, incidences, path, model=result.model,
+            title=figure_title(data.name, result.model.name, "over the hemisphere")))
     if args.plot_corner:
-        from brdfjax.plot import plot_corner
+        from brdfjax.plot import figure_title, plot_corner
 
         replace_atomically(args.plot_corner, lambda path: plot_corner(
-            uncertainty, path, title=f"{data.name}: {uncertainty.method} posterior"))
+            uncertainty, path, title=figure_title(data.name, result.model.name,
+                                                  f"{uncertainty.method} posterior")))
     for path in args.export:
         export(path, result, data, args, calibration)
     written = [path for path in (args.predict_out if prediction is not None else None,
@@ -904,7 +905,7 @@ def run_demo(args) -> None:
     from brdfjax.fitting.fit import fit
     from brdfjax.models.hemispherical import energy_warning, reflectance
     from brdfjax.models.paper import PAPER_ERRORS_PERCENT, PAPER_SAMPLES
-    from brdfjax.plot import plot_fit, plot_hemisphere
+    from brdfjax.plot import figure_title, plot_fit, plot_hemisphere
 
     print("Reflectance rho(theta_i) of Eq. (9) for the paper's parameters")
     print(f"  {'sample':<14} {'0 deg':>8} {'30 deg':>8} {'60 deg':>8}")
@@ -935,9 +936,11 @@ def run_demo(args) -> None:
     out.mkdir(parents=True, exist_ok=True)
     replace_atomically(out / "demo_fit.png", lambda p: plot_fit(
         data, result.vector, p, held_out=[21, 52],
-        title="white paint (synthetic): fit on 10/30/45/60 deg, 21/52 deg held out"))
+        title=figure_title("white_paint (synthetic)", result.model.name,
+                           "on 10/30/45/60 deg, 21/52 deg held out")))
     replace_atomically(out / "demo_hemisphere.png", lambda p: plot_hemisphere(
-        result.vector, [10, 30, 60], p, title="white paint: fitted model over the hemisphere"))
+        result.vector, [10, 30, 60], p,
+        title=figure_title("white_paint (synthetic)", result.model.name, "over the hemisphere")))
     print(f"\nFigures: {out / 'demo_fit.png'}, {out / 'demo_hemisphere.png'}")
 
 
