@@ -382,8 +382,11 @@ def test_adaptive_measurement_stops_on_the_width_with_honest_intervals(adaptive_
     out, journal, region = adaptive_run
     data = load(out)
     rounds = journal_records(journal, "round")
-    assert rounds[-1]["half_width"] <= 0.08  # it stopped on the target...
-    assert all(r["half_width"] is None or r["half_width"] > 0.08 for r in rounds[:-1])
+    # It stopped on the target, once the newest batch also fell inside the last intervals...
+    assert rounds[-1]["half_width"] <= 0.08 and rounds[-1]["checked"] >= 0.9
+    assert all(r["half_width"] is None or r["half_width"] > 0.08 or r["checked"] is None
+               or r["checked"] < 0.9 for r in rounds[:-1])
+    assert rounds[0]["checked"] is None
     assert len(data) == rounds[-1]["readings"] < len(region.points)  # ...before the grid
     assert [r["readings"] for r in rounds] == list(range(12, len(data) + 1, 8))
     # Every reading was read where a batch said, each geometry once, and the geometries

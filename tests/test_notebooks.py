@@ -44,6 +44,9 @@ def extra_requirements(extra: str) -> set[str]:
     return found
 
 PROBES = {
+    "planning": """{"stopped": run.stopped, "read": len(run.data), "total": len(region.points),
+        "coverage": check.coverage(), "realised": realised,
+        "stop": run.rounds[-1].half_width}""",
     "paper": """{
         "error": float(result.error),
         "error_truth": float((lambda d, m: np.sum((m - d.brdf * np.cos(d.theta_r)) ** 2)
@@ -163,7 +166,16 @@ def check_models(found):
     assert 2 <= lambert_out / lambert <= 4 and 2 <= rpv_out / rpv <= 4
 
 
-CHECKS = {"paper": check_paper, "uncertainty": check_uncertainty,
+def check_planning(found):
+    # "stopped with fewer than half of the 120 geometries read, the unread ones covered at
+    # 90 % or more, and a median half-width on them no wider than the stop said"
+    assert found["stopped"] == "target" and found["total"] == 120
+    assert found["read"] < found["total"] / 2
+    assert found["coverage"] >= 0.90
+    assert found["realised"] <= found["stop"] * 1.05 and found["stop"] <= 0.20
+
+
+CHECKS = {"paper": check_paper, "planning": check_planning, "uncertainty": check_uncertainty,
           "repeatability": check_repeatability, "instrument": check_instrument,
           "models": check_models}
 

@@ -6,10 +6,12 @@ import sys
 
 from brdfjax.commands import (
     add_model_option,
+    add_reader_options,
     angles,
     check_writable,
     parameters,
     positive_int,
+    reader_options,
 )
 
 PLAN_OPTIONS = ("theta_r_step", "theta_r_max", "azimuth", "average", "integration_ms",
@@ -102,6 +104,7 @@ def register(subparsers) -> None:
     sample.add_argument("--data", metavar="FILE",
                         help="interpolate this in-plane measurement file instead")
     add_model_option(p, "the model of --params")
+    add_reader_options(p)
     p.add_argument("--reference-reflectance", type=float, default=0.99, metavar="RHO",
                    help="the simulated PTFE plate's reflectance (default 0.99)")
     p.add_argument("--gain", type=float, default=3.0,
@@ -229,7 +232,7 @@ def run_simulate(args) -> None:
     else:
         from brdfjax.data.formats import load
 
-        sample = DataSample(load(args.data))
+        sample = DataSample(load(args.data, **reader_options(args)))
     device = Device(sample, reference_reflectance=args.reference_reflectance, gain=args.gain,
                     noise=args.noise, seed=args.seed, motor_speed=args.motor_speed,
                     changer_seconds=args.changer_seconds, baud=args.baud,
