@@ -62,6 +62,19 @@ if any(name not in _flags for name in _MEASURED_FLAGS):
         pass
 os.environ["XLA_FLAGS"] = _flags
 
+# OpenBLAS runs one thread per core by default, and its idle threads spin, waiting for the
+# next call, instead of sleeping. jaxlib solves with SciPy's OpenBLAS (LAPACK's Cholesky and
+# triangular solves of the learned discrepancy, `brdfjax.prediction.discrepancy`), matrices
+# of at most 256 rows, a few thousand calls a fit: a perf profile of warm `fit --cv` found
+# three quarters of the process's CPU in OpenBLAS's spinning (blas_thread_server,
+# exec_blas_async_wait). Alone on 2 cores that costs little, but where another job holds
+# the cores the spinning threads take its time slices from the one that works: the same
+# warm `fit --cv` took 38-65 s beside two busy processes, against 2-5 s with one OpenBLAS
+# thread (BENCHMARKS.md, section contention). One thread is the default here; a count given
+# in OPENBLAS_NUM_THREADS is kept. Like XLA's flags it acts on a library loaded after
+# `import brdfjax`: SciPy's OpenBLAS loads at the first LAPACK call, NumPy's with NumPy.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
 __version__ = "0.1.0"
 
 _EXPORTS = {

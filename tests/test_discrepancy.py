@@ -2,6 +2,7 @@
 
 import dataclasses
 import math
+import os
 
 import jax
 import numpy as np
@@ -242,3 +243,43 @@ def test_models_on_a_sphere_scatterometer_grid_of_13_incidences_finishes(tmp_pat
     assert done.returncode == 0, done.stderr
     assert "650 points" in done.stdout and "11 interior folds" in done.stdout
     assert "recommended: five" in done.stdout  # the model that made the data
+
+
+OPENBLAS_THREADS = """
+import ctypes
+import brdfjax  # before any LAPACK call, as a user's script imports it
+import jax.numpy as jnp
+
+jnp.linalg.cholesky(jnp.eye(4) * 2.0).block_until_ready()  # loads the OpenBLAS jaxlib uses
+libraries = {line.split()[-1] for line in open("/proc/self/maps") if "openblas" in line}
+for path in sorted(libraries):
+    library = ctypes.CDLL(path)
+    for name in ("scipy_openblas_get_num_threads", "scipy_openblas_get_num_threads64_",
+                 "openblas_get_num_threads", "openblas_get_num_threads64_"):
+        if hasattr(library, name):
+            print(path.rsplit("/", 1)[-1], getattr(library, name)())
+            break
+"""
+
+
+@pytest.mark.skipif(not os.path.exists("/proc/self/maps") or (os.cpu_count() or 1) < 2,
+                    reason="reads the loaded libraries from /proc; one core has one thread")
+@pytest.mark.parametrize(("given", "expected"), [(None, 1), ("2", 2)])
+def test_openblas_runs_one_thread_unless_the_user_says(environment, given, expected):
+    """Issue 47, defect 8: OpenBLAS's idle threads spin; beside another busy job they took
+    the cores from the thread doing the discrepancy's LAPACK calls (fit --cv 2 -> 50 s).
+    ``import brdfjax`` makes one thread the default; a count the user gives is kept. The
+    count is OpenBLAS's own answer (its get_num_threads), for every OpenBLAS loaded,
+    jaxlib's (SciPy's) among them."""
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in environment.items() if k != "OPENBLAS_NUM_THREADS"}
+    if given is not None:
+        env["OPENBLAS_NUM_THREADS"] = given
+    done = subprocess.run([sys.executable, "-c", OPENBLAS_THREADS], env=env, check=False,
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    counts = dict(line.split() for line in done.stdout.splitlines())
+    assert any(name.startswith("libscipy_openblas-") for name in counts), counts  # jaxlib's
+    assert set(counts.values()) == {str(expected)}, counts
