@@ -57,7 +57,8 @@ def curve_angles(incidence_deg: float, count: int = 361):
 
 
 def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: bool = False,
-             model=None, predictive=None, errors=None, bands_method: str = "", note: str = ""):
+             model=None, predictive=None, errors=None, bands_method: str = "", note: str = "",
+             readings=None):
     """Data points and fitted curves of f_r cos(theta_r), one colour per incidence.
 
     Args:
@@ -77,6 +78,10 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
             discrepancy corrects it). An incidence here that the data lack (one asked for
             with ``--predict``) is drawn too, its model curve dash-dotted.
         errors: ``{incidence: E}`` shown in the legend (a fraction; printed in %).
+        readings: readings the data lack (those of a ``--predict`` file), in the plane of
+            incidence: ``{incidence: (Measurements, label)}``, drawn as crosses in their
+            incidence's colour and named in the legend by ``label``; an incidence the data
+            lack is then drawn as measured, not as "predicted (not measured)".
         log: log-scale the vertical axis (for dark samples with a strong peak).
         model: a model name or `brdfjax.models.Model` (the five-parameter model if None).
 
@@ -88,7 +93,8 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7.5, 6))
     measured = [float(t) for t in data.incidences_deg]
-    asked = sorted(float(t) for t in (predictive or {})
+    extra = {float(t): value for t, value in (readings or {}).items()}
+    asked = sorted(float(t) for t in {*(predictive or {}), *extra}
                    if not np.any(np.isclose(float(t), measured)))
     incidences = sorted(measured + asked)
     colours = plt.get_cmap("viridis")(np.linspace(0, 0.9, max(1, len(incidences))))
@@ -96,16 +102,20 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
     corrected = False
     for colour, incidence in zip(colours, incidences):
         is_held = round(float(incidence), 6) in held
-        if incidence in asked:
+        if incidence in asked and incidence not in extra:
             ax.plot([], [], ":", color=colour, lw=1.5,
                     label=f"{incidence:g} deg predicted (not measured)")
-        else:
+        elif incidence not in asked:
             subset = data.at_incidences([incidence])
             error = (errors or {}).get(float(incidence))
             ax.plot(signed_angle_deg(subset), subset.brdf * np.cos(subset.theta_r),
                     "o", ms=3, mfc="none" if is_held else colour, mec=colour,
                     label=f"{incidence:g} deg data" + (" (held out)" if is_held else "")
                     + ("" if error is None else f", E {100 * error:.3g} %"))
+        if incidence in extra:
+            points, label = extra[incidence]
+            ax.plot(signed_angle_deg(points), points.brdf * np.cos(points.theta_r),
+                    "x", ms=4.5, mew=1.2, color=colour, label=label)
         angles, signed = curve_angles(incidence)
         curve = np.asarray(projected_brdf(np.asarray(params, float), *angles, model=model))
         style = "-." if incidence in asked else "--" if is_held else "-"
@@ -148,7 +158,7 @@ def plot_fit(data, params, path, title: str = "", held_out=(), bands=None, log: 
                               label=f"fitted {name} model at a held-out incidence"))
     if asked:
         handles.append(Line2D([], [], ls="-.", color=shade, lw=1.5,
-                              label=f"fitted {name} model at an incidence not measured"))
+                              label=f"fitted {name} model at an incidence the data lack"))
     if bands:
         method = f" ({bands_method})" if bands_method else ""
         handles += [Patch(color=shade, alpha=BAND_ALPHA[level], lw=0,

@@ -550,3 +550,41 @@ def test_abg_out_needs_abg_per_incidence(tmp_path, capsys, monkeypatch):
         assert main(["fit", str(EC1), *options, "--abg-out", str(tmp_path / "x.txt")]) != 0
         assert "it needs --model abg --per-incidence" in capsys.readouterr().err
     assert not list(tmp_path.iterdir())
+
+
+STEEL_A = REAL / "uaz-loft-rt300s" / "raw" / "NiTE_on_steel_v1o0A_20250915.xls"
+
+
+def test_the_reader_options_apply_to_the_predict_file_where_its_format_takes_them(
+        tmp_path, capsys):
+    """``fit X.xls --in-plane --predict grid.csv`` was refused: --in-plane was applied to the
+    geometry CSV too. The CSV takes none of the RT-300S options; the prediction is the fitted
+    model's (its transcription at the JSON's parameters), at the CSV's geometry. An RT-300S
+    --predict file is read in the plane, as the fitted one; a folder is still refused, naming
+    the option."""
+    grid = tmp_path / "grid.csv"
+    angles = np.array([[50.0, r, side] for r in (5.0, 30.0, 60.0) for side in (0.0, 180.0)])
+    grid.write_text("theta_i,theta_r,phi_r\n"
+                    + "".join(f"{i:g},{r:g},{p:g}\n" for i, r, p in angles))
+    out, record = tmp_path / "pred.csv", tmp_path / "fit.json"
+    assert main(["fit", str(STEEL_A), "--in-plane", "--model", "ggx", "--uncertainty", "none",
+                 "--discrepancy", "none", "--predict", str(grid), "--predict-out", str(out),
+                 "--json", str(record)]) == 0, capsys.readouterr().err
+    header, *lines = out.read_text().splitlines()
+    rows = np.array([[float(v) for v in line.split(",")] for line in lines])
+    np.testing.assert_allclose(rows[:, :3], angles)
+    params = json.loads(record.read_text())["params"]
+    expected = transcription.ggx(*(params[k] for k in ("ks", "alpha", "f0", "kd")),
+                                 *np.radians(angles.T))
+    np.testing.assert_allclose(rows[:, header.split(",").index("model_brdf")], expected,
+                               rtol=1e-6)
+    # an RT-300S file takes --in-plane: its 120 in-plane readings, not its 3-D scan
+    assert main(["fit", str(STEEL_A), "--in-plane", "--model", "ggx", "--uncertainty", "none",
+                 "--discrepancy", "none", "--predict", str(STEEL_A), "--predict-out",
+                 str(out)]) == 0
+    assert len(out.read_text().splitlines()) == 1 + 120
+    capsys.readouterr()
+    assert main(["fit", str(STEEL_A), "--in-plane", "--predict", str(tmp_path),
+                 "--predict-out", str(out)]) == 1
+    assert capsys.readouterr().err.startswith(
+        f"brdfjax fit: error: --predict {tmp_path}: is a folder")

@@ -100,7 +100,9 @@ def register(subparsers) -> None:
     p.add_argument("--predict", metavar="GEOMETRY",
                    help="predict at the geometry of this file (any format, or a CSV of "
                         "theta_i,theta_r,phi_r), with 68/95 %% predictive intervals "
-                        "calibrated on cross-validation; needs --predict-out")
+                        "calibrated on cross-validation; needs --predict-out. Of --in-plane, "
+                        "--blank and --wavelength it takes those its format reads (a geometry "
+                        "CSV none, an RT-300S .xls all three)")
     p.add_argument("--predict-out", metavar="PRED.csv",
                    help="where --predict writes theta_i,theta_r,phi_r,brdf,model_brdf,lo68,"
                         "hi68,lo95,hi95[,measured] (brdf: the prediction; model_brdf: the "
@@ -227,7 +229,7 @@ def run_fit(args) -> None:
         from brdfjax.data.measurements import DataError
 
         try:
-            geometry = load_geometry(args.predict, **reader_options(args))
+            geometry = load_geometry(args.predict, **predict_reader_options(args))
         except DataError as error:  # which of the two files: the option says
             raise DataError(f"--predict {error}") from None
     if args.uncertainty == "mcmc" and not args.per_incidence:  # before any fit
@@ -276,6 +278,26 @@ def check_model_walkers(model: str, walkers: int, sigma: bool) -> None:
         if model != "auto":
             raise
         raise ValueError(f"--model auto may choose {largest}: {error}") from None
+
+
+def predict_reader_options(args) -> dict:
+    """The reader options (`brdfjax.commands.reader_options`) that apply to the ``--predict``
+    file: those its format's reader takes, no others.
+
+    ``--in-plane``, ``--blank`` and ``--wavelength`` are given for the measurement file, and
+    ``--predict`` may name a file of another format: a geometry CSV takes none of the first
+    two, so ``fit X.xls --in-plane --predict grid.csv`` was refused. An RT-300S ``--predict``
+    file takes all three (read as the training scan is: in the plane if that one is, with the
+    same blank), a NIST, ASTM, Zemax or CSV file the wavelength (a CSV's is checked against its
+    ``# wavelength_nm:`` line). A file that is missing, a folder or of no known format still
+    fails, in `run_fit`, with the ``--predict`` option named.
+    """
+    import inspect
+
+    from brdfjax.data.formats import _format_reader
+
+    taken = inspect.signature(_format_reader(args.predict).read).parameters
+    return {name: value for name, value in reader_options(args).items() if name in taken}
 
 
 def run_per_incidence(data, args) -> None:
@@ -599,10 +621,12 @@ def write_outputs(result, data, args, uncertainty=None, calibration=None,
         from brdfjax.plot import plot_fit
 
         errors = {**result.error_by_incidence, **result.validation_by_incidence}
-        # --predict's incidences that were not measured are drawn too: the curve asked for
+        # --predict's incidences that were not measured are drawn too: the curve asked for,
+        # and the --predict file's own readings where the data lack them
         asked = [] if prediction is None else [
             t for t in np.unique(np.round(prediction.theta_i, 6))
             if not np.any(np.isclose(t, data.incidences_deg))]
+        readings = predicted_readings(prediction, data, args.predict)
         predictive = (None if calibration is None else
                       predictive_bands(result, [*data.incidences_deg, *asked], calibration))
         kinds = " and ".join(name for name, shown in (
@@ -611,7 +635,7 @@ def write_outputs(result, data, args, uncertainty=None, calibration=None,
         replace_atomically(args.plot, lambda path: plot_fit(
             data, result.vector, path, model=result.model,
             held_out=result.validation_incidences, log=args.log, bands=bands,
-            predictive=predictive, errors=errors, note=note,
+            predictive=predictive, errors=errors, note=note, readings=readings,
             bands_method=uncertainty.method if bands else "",
             title=f"{data.name}: {result.model.name} fit, E = {100 * result.error:.3g} %"
                   + (f"; {kinds}" if kinds else "")))
@@ -637,6 +661,34 @@ def write_outputs(result, data, args, uncertainty=None, calibration=None,
                                  *args.export) if path]
     if written:
         print(f"wrote {', '.join(written)}")
+
+
+def predicted_readings(prediction, data, source) -> dict:
+    """The ``--predict`` file's measured values that `plot_fit` draws: those in the plane of
+    incidence at geometries the fitted file lacks (its own points are drawn as data), by
+    incidence, ``{incidence: (Measurements, legend label)}``; the label says which file they
+    come from and how many of them the 95 % intervals hold, as the console does."""
+    from brdfjax.data.measurements import Measurements
+
+    if prediction is None or prediction.measured is None:
+        return {}
+    known = {tuple(row) for row in np.round(np.degrees(
+        [data.theta_i, data.theta_r, np.mod(data.phi_r, 2 * np.pi)]).T, 6)}
+    geometry = np.stack([prediction.theta_i, prediction.theta_r,
+                         np.mod(prediction.phi_r, 360.0)], axis=1)
+    new = np.array([tuple(row) not in known for row in np.round(geometry, 6)], bool)
+    in_plane = np.abs(np.sin(np.radians(prediction.phi_r))) < 1e-9
+    keep = new & in_plane & np.isfinite(prediction.measured)
+    inside = (prediction.measured >= prediction.lo95) & (prediction.measured <= prediction.hi95)
+    readings = {}
+    for incidence in np.unique(np.round(prediction.theta_i[keep], 6)):
+        at = keep & np.isclose(prediction.theta_i, incidence, rtol=0, atol=1e-6)
+        points = Measurements(*np.radians([prediction.theta_i[at], prediction.theta_r[at],
+                                           prediction.phi_r[at]]), prediction.measured[at])
+        readings[float(incidence)] = (points, (
+            f"{incidence:g} deg measured ({Path(source).name}, not fitted),\n"
+            f"{inside[at].sum()} of {at.sum()} in the 95 % band"))
+    return readings
 
 
 EXPORTS = (".bsdf", ".astm")
