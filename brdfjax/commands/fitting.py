@@ -750,6 +750,9 @@ def export(path, result, data, args, calibration) -> None:
                   f"{incidences[worst]:g} deg moves by {100 * drift[worst]:.2g} %: the grid is "
                   "coarse for this lobe, and a ray tracer interpolating it errs as much; a "
                   "finer --export-step follows the prediction better")
+    note = tis_note(result, correction, incidences, step, totals)
+    if note:
+        print(f"  note: {path}: {note}")
     for note in range_notes(calibration, result.training.in_plane,
                             *np.radians(distinct_directions(nodes).T), what="table nodes"):
         print(f"  warning: {path}: {note}")
@@ -759,6 +762,53 @@ def export(path, result, data, args, calibration) -> None:
 # says the grid is coarse: GGX alone on NiTE on invar A at 80 deg incidence moves by 2.3 %
 # from the default 5 deg to 2.5 deg (TIS 0.1891 and 0.1935), by 11 % from 10 deg to 5.
 TIS_DRIFT = 0.05
+
+
+# The relative difference between an exported table's TIS and the fitted model's reflectance
+# (Eq. 9, what fit prints as rho) above which `tis_note` says why. The same 5 % as
+# `TIS_DRIFT`: below it the export's own quadrature may account for the difference (the grid
+# alone is let err up to that before it is called coarse); above it a user comparing the two
+# printed numbers reads a contradiction. GGX with its learned correction on NiTE on invar A at
+# 0 deg: 0.06396 against 0.07335, -12.8 %, of which the 5 deg grid -0.4 %.
+TIS_MISMATCH = 0.05
+
+
+def tis_note(result, correction, incidences, step: float, totals) -> str:
+    """Why an exported table's TIS (``totals``, one per incidence) differs from the fitted
+    model's reflectance (`brdfjax.models.hemispherical.reflectance`, Eq. 9), where it does by
+    more than `TIS_MISMATCH`; "" where it does not.
+
+    The two integrate different things: the table gives the model times the learned
+    correction (``correction``, None with ``--discrepancy none``) at its nodes, and its TIS
+    is a trapezoidal rule over them; the reflectance is the analytic model alone, integrated
+    by a quadrature dense around its lobe. The note splits the difference at the worst
+    incidence into its two factors: the grid's (the model alone on the same grid against its
+    reflectance) and the correction's (the table against the model alone on the grid)."""
+    from brdfjax.models.hemispherical import reflectance
+
+    rho = np.asarray(reflectance(result.params, np.radians(incidences), model=result.model,
+                                 warn=False), float)
+    totals = np.asarray(totals, float)
+    difference = totals / np.where(rho > 0, rho, np.nan) - 1
+    if not np.nanmax(np.abs(difference), initial=0.0) > TIS_MISMATCH:
+        return ""
+    worst = int(np.nanargmax(np.abs(difference)))
+    alone = float(totals[worst] if correction is None
+                  else zemax_tis(result, None, incidences[worst:worst + 1], step)[0])
+    grid = alone / rho[worst] - 1
+    over = [f"{t:g}" for t, d in zip(incidences, difference) if abs(d) > TIS_MISMATCH]
+    text = (f"the table's TIS differs from the {result.model.name} model's reflectance (fit's "
+            f"rho) by more than {100 * TIS_MISMATCH:g} % at {', '.join(over)} deg; at "
+            f"{incidences[worst]:g} deg {totals[worst]:.4g} against {rho[worst]:.4g} "
+            f"({100 * difference[worst]:+.3g} %). The grid's quadrature makes "
+            f"{100 * grid:+.2g} % of it (the model alone on this {step:g} deg grid: "
+            f"{alone:.4g})")
+    if correction is None:
+        return text + "; a finer --export-step follows the model closer"
+    return (text + f"; the learned correction the table multiplies the model by makes "
+            f"{100 * (totals[worst] / alone - 1):+.3g} %: it is the data's departure from "
+            "the model, which the reflectance leaves out (--discrepancy none tabulates the "
+            "model alone)")
 
 
 def zemax_axes(incidences, step: float) -> tuple[np.ndarray, np.ndarray]:
