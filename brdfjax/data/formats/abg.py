@@ -23,6 +23,11 @@ layout of the catalog file itself was not found in OpticStudio's public document
 check a first import against your version (or type the rows into the dialog). The TIS is
 the reflectance of Eq. (9) of each row (`brdfjax.models.hemispherical.reflectance`), the total
 scatter of the ABg lobe at its own incidence.
+
+How well each row fits is its E of Eq. (6) (`AbgRow.error`), and a row above
+`POOR_ROW_ERROR` is flagged as a poor fit in `report` and in the JSON (``poor_fit``): its
+catalog line is still written, but the lobe it describes misses that incidence's data, and a
+ray tracer interpolates between rows.
 """
 
 from __future__ import annotations
@@ -34,6 +39,16 @@ import numpy as np
 
 ZEMAX_MIN_B = 1e-12
 ZEMAX_MAX_ROWS = 10
+# A row whose E of Eq. (6) exceeds this fits poorly. E is a relative squared error, so the
+# noise of a measurement sets its floor: between repeat runs of one sample on the RT-300S
+# (NiTE on steel rotated, NiTE on invar remounted; the same geometries, run B or C scored
+# against run A) E is 0.15-1.3 % per incidence, and it counts the noise of both runs. 5 %
+# is about four times the largest of those: a row above it misses its data by far more
+# than the instrument repeats, an error of the ABg lobe's shape, not noise (NiTE on steel
+# A: rows at 10 and 30 deg 0.68 and 2.8 %, at 50 and 70 deg 13.8 and 17.1 %). Rows are not
+# compared with each other: on these coatings half the rows are poor, and a rule relative to
+# the median row would flag none of them.
+POOR_ROW_ERROR = 0.05
 
 
 @dataclass
@@ -47,6 +62,8 @@ class AbgRow:
         tis: the total integrated scatter (reflectance of Eq. 9) of the row.
         fred_check: ``pi A / B``, at most 1 for FRED (the module docstring).
         zemax_ok: ``A >= 0`` and ``B > 1e-12`` unless ``g = 0``.
+        poor_fit: ``error`` above the threshold it was judged by (`POOR_ROW_ERROR` by
+            default): the row misses its data by more than a measurement's noise.
     """
 
     incidence_deg: float
@@ -57,15 +74,18 @@ class AbgRow:
     tis: float
     fred_check: float
     zemax_ok: bool
+    poor_fit: bool = False
 
     def to_dict(self) -> dict:
         return {"incidence_deg": self.incidence_deg, "A": self.A, "B": self.B, "g": self.g,
-                "error": self.error, "tis": self.tis, "fred_check": self.fred_check,
-                "zemax_ok": self.zemax_ok}
+                "error": self.error, "poor_fit": self.poor_fit, "tis": self.tis,
+                "fred_check": self.fred_check, "zemax_ok": self.zemax_ok}
 
 
-def abg_rows(per_incidence) -> list[AbgRow]:
-    """`AbgRow` s, sorted by angle, from ``[(incidence_deg, FitResult of abg)]``."""
+def abg_rows(per_incidence, poor_error: float = POOR_ROW_ERROR) -> list[AbgRow]:
+    """`AbgRow` s, sorted by angle, from ``[(incidence_deg, FitResult of abg)]``; a row
+    whose E exceeds ``poor_error`` (a fraction; `POOR_ROW_ERROR` says why 5 %) is marked
+    ``poor_fit``, as is one without a finite E."""
     from brdfjax.models.hemispherical import reflectance
 
     rows = []
@@ -76,7 +96,8 @@ def abg_rows(per_incidence) -> list[AbgRow]:
         tis = float(reflectance(result.vector, np.radians(degrees), model="abg", warn=False))
         rows.append(AbgRow(float(degrees), a, b, g, float(result.error), tis,
                            float(np.pi * a / b) if b > 0 else float("inf"),
-                           bool(a >= 0 and (b > ZEMAX_MIN_B or g == 0))))
+                           bool(a >= 0 and (b > ZEMAX_MIN_B or g == 0)),
+                           not float(result.error) <= poor_error))
     return rows
 
 
@@ -115,12 +136,14 @@ def catalog_entry(name: str, rows: list[AbgRow], wavelength_um: float = 0.0) -> 
     return "\n".join(lines) + "\n"
 
 
-def report(rows: list[AbgRow]) -> str:
-    """The per-incidence table with the TIS checks, and the parameters FRED takes."""
+def report(rows: list[AbgRow], poor_error: float = POOR_ROW_ERROR) -> str:
+    """The per-incidence table with how well each row fits (E, and ``poor fit`` above
+    ``poor_error``, as `abg_rows` judged it) and the TIS checks, then the parameters FRED
+    takes."""
     lines = [(f"  {'incidence':>9} {'A':>12} {'B':>12} {'g':>8} {'E (%)':>8} {'TIS':>8} "
               f"{'pi A/B':>10}  checks")]
     for row in rows:
-        flags = []
+        flags = [f"poor fit: E > {100 * poor_error:g} %"] if row.poor_fit else []
         if row.tis >= 1:
             flags.append("TIS >= 1: Zemax scatter inaccurate")
         if row.fred_check > 1:
@@ -130,6 +153,14 @@ def report(rows: list[AbgRow]) -> str:
         lines.append(f"  {row.incidence_deg:9g} {row.A:12.5g} {row.B:12.5g} {row.g:8.4g} "
                      f"{100 * row.error:8.3g} {row.tis:8.4g} {row.fred_check:10.4g}  "
                      f"{'; '.join(flags) or 'ok'}")
+    poor = [row for row in rows if row.poor_fit]
+    if poor:
+        lines.append(
+            f"{len(poor)} of {len(rows)} rows fit poorly (E above {100 * poor_error:g} %, "
+            f"several times what repeat measurements differ by): at "
+            f"{', '.join(f'{row.incidence_deg:g}' for row in poor)} deg one ABg lobe does not "
+            "describe the data, and a ray tracer using these rows scatters otherwise than the "
+            "sample there; compare E with your measurement's repeatability before using them")
     lines.append("FRED (ABg scatter model, BSDF = A / (B + |beta - beta0|^g)), one set per "
                  "incidence:")
     for row in rows:
