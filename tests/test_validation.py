@@ -633,3 +633,46 @@ def test_an_export_says_why_its_tis_differs_from_the_models_reflectance(tmp_path
     assert "the table's TIS differs" not in printed["1"]
     assert abs(float(re.search(r"TIS at 30 deg ([\d.e-]+)", printed["1"]).group(1)) / rho
                - 1) < 0.05
+
+
+def test_the_prediction_csv_has_a_sidecar_saying_what_made_it(tmp_path, ggx_data, capsys):
+    """``--predict-out PRED.csv`` writes ``PRED.csv-metadata.json`` beside it: the model, the
+    discrepancy, the parameters (as --json gives them), the training file, the version, the command, and
+    the CSV's SHA-256. The CSV stays a header line and numbers, read here without options by
+    the csv module and NumPy (pandas is not installed in the project's environment; its
+    ``read_csv`` is used where it is)."""
+    import csv as csv_module
+    import hashlib
+
+    from brdfjax import __version__
+    from brdfjax.data.formats import csv
+
+    source = tmp_path / "ggx.csv"
+    csv.write(ggx_data, source)
+    out, record = tmp_path / "pred.csv", tmp_path / "fit.json"
+    argv = ["fit", str(source), "--model", "ggx", "--uncertainty", "none", "--discrepancy",
+            "none", "--predict", str(source), "--predict-out", str(out), "--json", str(record)]
+    assert main(argv) == 0
+    assert f"wrote {out}, {out}-metadata.json, " in capsys.readouterr().out
+    sidecar = json.loads((tmp_path / "pred.csv-metadata.json").read_text())
+    assert sidecar["model"] == "ggx" and sidecar["discrepancy"] == "none"
+    assert sidecar["params"] == json.loads(record.read_text())["params"]
+    assert sidecar["csv"] == "pred.csv" and sidecar["brdfjax_version"] == __version__
+    assert sidecar["csv_sha256"] == hashlib.sha256(out.read_bytes()).hexdigest()
+    assert sidecar["training"]["file"] == str(source) and sidecar["points"] == len(ggx_data)
+    assert shlex.split(sidecar["command"]) == ["brdfjax", *argv]
+    assert sidecar["calibration"]["discrepancy"] == "none"
+    with out.open(newline="") as handle:
+        header, *rows = list(csv_module.reader(handle))
+    assert list(sidecar["columns"]) == header and len(rows) == len(ggx_data)
+    table = np.loadtxt(out, delimiter=",", skiprows=1)
+    assert table.shape == (len(ggx_data), len(header))
+    # the sidecar cannot take --json's name: refused before any fit
+    assert main([*argv[:-1], f"{out}-metadata.json"]) == 1
+    assert "which --json names too" in capsys.readouterr().err
+    try:
+        import pandas
+    except ImportError:
+        return
+    frame = pandas.read_csv(out)
+    assert list(frame.columns) == header and frame.to_numpy().dtype == float

@@ -216,8 +216,13 @@ def run_fit(args) -> None:
             raise ValueError(f"--export {path}: name a Zemax .bsdf or an ASTM E1392 .astm file")
     if args.export:
         check_export_grid(args.export_step, args.export_incidences)
+    described = sidecar_path(args.predict_out) if args.predict_out else None
+    if described and args.json and Path(described).resolve() == Path(args.json).resolve():
+        raise ValueError(f"--predict-out {args.predict_out} is described in {described}, "
+                         "which --json names too: give one of them another name")
     check_writable({**{f"--export {path}": path for path in args.export},
                     "--json": args.json, "--predict-out": args.predict_out,
+                    "--predict-out's description": described,
                     "--chain": args.chain if args.uncertainty == "mcmc" else None,
                     "--abg-out": args.abg_out},
                    figures={"--plot": args.plot, "--plot-3d": args.plot_3d,
@@ -605,7 +610,10 @@ def write_outputs(result, data, args, uncertainty=None, calibration=None,
                   f"{uncertainty.status.replace('_', ' ')} (why: the uncertainty line "
                   "above)")
     if prediction is not None:
-        write_atomically(args.predict_out, prediction.to_csv())
+        text = prediction.to_csv()
+        write_atomically(args.predict_out, text)
+        write_atomically(sidecar_path(args.predict_out), json_text(prediction.sidecar(
+            text, **prediction_context(result, data, args, calibration))))
     if args.json:
         write_atomically(args.json, json_text(record))
     if args.plot and not data.in_plane:
@@ -657,10 +665,39 @@ def write_outputs(result, data, args, uncertainty=None, calibration=None,
     for path in args.export:
         export(path, result, data, args, calibration)
     written = [path for path in (args.predict_out if prediction is not None else None,
+                                 sidecar_path(args.predict_out) if prediction else None,
                                  args.json, args.plot, args.plot_3d, args.plot_corner,
                                  *args.export) if path]
     if written:
         print(f"wrote {', '.join(written)}")
+
+
+def sidecar_path(predict_out: str) -> str:
+    """Where ``--predict-out PRED.csv``'s description goes: ``PRED.csv-metadata.json``
+    beside it (`brdfjax.prediction.intervals.Prediction.sidecar` says why a sidecar). The name
+    is the one W3C's CSV on the Web gives a CSV's metadata file (its content is brdfjax's
+    own, not a CSVW table description); ``PRED.json`` was often the name users give
+    ``--json`` for the same run."""
+    return f"{predict_out}-metadata.json"
+
+
+def prediction_context(result, data, args, calibration) -> dict:
+    """What the ``--predict-out`` sidecar adds to the prediction's own description: the
+    file it was read from and fitted on, the parameters, the calibration (its conformal
+    factors and learned process), the geometry file and the command that made it."""
+    import shlex
+
+    return {"csv": Path(args.predict_out).name,
+            "params": dict(zip(result.model.names, map(float, result.params))),
+            "training": {"file": str(args.file), "sample": data.name,
+                         "reader_options": reader_options(args),
+                         "fitted_incidences_deg": [float(t) for t in np.unique(np.round(
+                             np.degrees(result.training.theta_i), 6))],
+                         "held_out_incidences_deg": [float(t) for t in
+                                                     result.validation_incidences]},
+            "geometry_file": str(args.predict),
+            "calibration": calibration.to_dict(),
+            "command": shlex.join(["brdfjax", *args.argv])}
 
 
 def predicted_readings(prediction, data, source) -> dict:

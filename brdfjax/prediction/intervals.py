@@ -437,6 +437,48 @@ class Prediction:
         lines += [",".join(f"{v:.10g}" for v in row) for row in table]
         return "\n".join(lines) + "\n"
 
+    def sidecar(self, csv_text: str, **context) -> dict:
+        """What made the CSV text ``csv_text`` (`to_csv`), for a JSON file beside it
+        (``PRED.csv-metadata.json`` beside ``PRED.csv``, as ``brdfjax fit --predict-out``
+        writes it).
+
+        A sidecar, not columns or comment lines: the CSV stays one header line and numbers,
+        which ``pandas.read_csv``, ``numpy.loadtxt(..., delimiter=",", skiprows=1)`` and the
+        ``csv`` module read without options (a ``#`` line would need ``comment="#"``; text
+        columns would repeat one string on every row of up to 100,000 and stop NumPy's
+        readers), and the description can nest what columns cannot (the calibration, the
+        learned process, the parameters). The two files can travel apart: the sidecar names
+        the CSV and its SHA-256, so a reader can tell whether it describes the CSV at hand.
+
+        Args:
+            csv_text: the CSV as written.
+            **context: what the caller knows and the prediction does not (the training file,
+                the parameters, the calibration, the command), added as given.
+
+        Returns:
+            A JSON-ready dict: ``model``, ``discrepancy``, ``points``, ``columns`` (each
+            column's meaning), ``csv_sha256``, ``brdfjax_version``, ``warnings``, then
+            ``context``.
+        """
+        import hashlib
+
+        from brdfjax import __version__
+
+        meaning = {"theta_i": "incidence (deg)", "theta_r": "reflection zenith (deg)",
+                   "phi_r": "reflection azimuth (deg; 180: the specular side)",
+                   "brdf": f"the prediction (1/sr): {self.model}"
+                           + (" x its learned discrepancy" if self.discrepancy == "gp" else ""),
+                   "model_brdf": f"the fitted {self.model} model alone (1/sr)",
+                   "lo68": "68.27 % predictive interval, low (1/sr)", "hi68": "its high end",
+                   "lo95": "95 % predictive interval, low (1/sr)", "hi95": "its high end",
+                   "measured": "the geometry file's measured BRDF (1/sr)"}
+        header = csv_text.split("\n", 1)[0].split(",")
+        return {"model": self.model, "discrepancy": self.discrepancy,
+                "points": int(self.brdf.size),
+                "columns": {name: meaning[name] for name in header},
+                "csv_sha256": hashlib.sha256(csv_text.encode()).hexdigest(),
+                "brdfjax_version": __version__, "warnings": list(self.warnings), **context}
+
     def to_dict(self) -> dict:
         """A summary for JSON (the values themselves go to the CSV)."""
         record = {"model": self.model, "discrepancy": self.discrepancy,
