@@ -637,8 +637,8 @@ def test_an_export_says_why_its_tis_differs_from_the_models_reflectance(tmp_path
 
 def test_the_prediction_csv_has_a_sidecar_saying_what_made_it(tmp_path, ggx_data, capsys):
     """``--predict-out PRED.csv`` writes ``PRED.csv-metadata.json`` beside it: the model, the
-    discrepancy, the parameters (as --json gives them), the training file, the version, the command, and
-    the CSV's SHA-256. The CSV stays a header line and numbers, read here without options by
+    discrepancy, the parameters (as --json gives them), the training file, the version, the
+    command, and the CSV's SHA-256. The CSV stays a header line and numbers, read here without options by
     the csv module and NumPy (pandas is not installed in the project's environment; its
     ``read_csv`` is used where it is)."""
     import csv as csv_module

@@ -106,7 +106,9 @@ def register(subparsers) -> None:
     p.add_argument("--predict-out", metavar="PRED.csv",
                    help="where --predict writes theta_i,theta_r,phi_r,brdf,model_brdf,lo68,"
                         "hi68,lo95,hi95[,measured] (brdf: the prediction; model_brdf: the "
-                        "analytic model alone)")
+                        "analytic model alone); PRED.csv-metadata.json beside it says what "
+                        "made it (model, discrepancy, parameters, calibration, training file, "
+                        "command)")
     p.add_argument("--discrepancy", choices=DISCREPANCIES, default="gp",
                    help="what --predict and the plot's predictive bands add to the model: gp, "
                         "a Gaussian process learned from the model's log residual, which "
