@@ -451,6 +451,30 @@ def test_adaptive_measurement_interrupted_resumes_with_the_same_decisions(
     assert same_readings(load(out), load(clean_out))
 
 
+def test_adaptive_stop_rule():
+    from brdfjax.instrument.adaptive import Round, _stop, levelled
+
+    def rounds(widths, checked=1.0, minutes=0.0):
+        return [Round(20 + 10 * k, minutes, "ggx", w, None if k == 0 else checked)
+                for k, w in enumerate(widths)]
+
+    def stop(history, readings=50, candidates=100, max_readings=None, max_minutes=None):
+        return _stop(history, readings, candidates, 0.10, max_readings, max_minutes)
+
+    assert stop(rounds([math.inf, 0.08])) == "target"
+    assert stop(rounds([math.inf, 0.08], checked=0.8)) is None  # the newest batch missed
+    assert stop(rounds([0.08])) is None  # no batch has checked the intervals yet
+    # Five calibrated rounds, none 5 % below the narrowest before them: levelled off.
+    flat = [math.inf, 0.31, 0.33, 0.30, 0.35, 0.32, 0.31]
+    assert levelled(rounds(flat)) and stop(rounds(flat)) == "levelled"
+    assert not levelled(rounds(flat[:-1]))  # only 4 rounds after the first calibrated one
+    assert not levelled(rounds([*flat[:-1], 0.29]))  # 0.29 < 0.95 x 0.31: still narrowing
+    assert stop(rounds([math.inf]), readings=30, max_readings=30) == "max-readings"
+    assert stop(rounds([math.inf], minutes=12.0), max_minutes=10) == "max-minutes"
+    assert stop(rounds([math.inf]), readings=100) == "candidates"
+    assert stop(rounds([math.inf]), max_readings=60, max_minutes=13) is None
+
+
 @pytest.mark.timeout(120)
 def test_adaptive_bad_input_fails_before_any_motor_moves(tmp_path, capsys):
     out = str(tmp_path / "never.csv")

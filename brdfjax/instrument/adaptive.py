@@ -11,9 +11,10 @@ the geometries the loop may read (by default the region's own):
    intervals (`brdfjax.prediction.intervals.predict`, calibrated on held-out incidences).
    The round's width is the median over the region of the 95 % half-width relative to the
    prediction.
-3. **Stop** when that width is at most ``target_width``, or when ``max_readings`` readings
-   or ``max_minutes`` of instrument time are spent (checked between batches), or no
-   candidate is left.
+3. **Stop** when that width is at most ``target_width`` and the newest batch fell inside
+   the previous round's intervals (`CHECKED`); when the width has levelled off above the
+   target (`levelled`); when ``max_readings`` readings or ``max_minutes`` of instrument
+   time are spent (checked between batches); or when no candidate is left.
 4. **Plan** otherwise the next ``batch`` readings, those that most reduce the integrated
    variance of the discrepancy over the region (ALC), in a short route; read them; back to 2.
 
@@ -57,7 +58,15 @@ BATCH_READINGS = 10
 # held-out scores of 2-3 interior incidences, stopped 1 of 3 RT-300S scans at 2.5 % with
 # 57.5 % of the rest covered.
 CHECKED = 0.9
+# The width has levelled off when the last LEVELLED_ROUNDS calibrated rounds narrowed it by
+# less than LEVELLED_GAIN (relative) below the narrowest before them: it is then set by
+# what the model and its discrepancy miss between the measured incidences, and reading
+# more of the same geometries does not narrow it (on a legacy RT-300S scan of 4 incidences
+# the width wandered between 28 and 42 % for 20 rounds, 250 readings, at a 20 % target).
+LEVELLED_ROUNDS = 5
+LEVELLED_GAIN = 0.05
 STOPPED = {"target": "the target width was reached",
+           "levelled": "the width levelled off above the target",
            "max-readings": "the reading budget (--max-readings) was spent",
            "max-minutes": "the time budget (--max-minutes) was spent",
            "candidates": "every candidate geometry was read"}
@@ -106,8 +115,8 @@ class AdaptiveResult:
     Attributes:
         data: the measurements written to the output file.
         rounds: every assessment, in order.
-        stopped: why it stopped: ``target``, ``max-readings``, ``max-minutes`` or
-            ``candidates`` (none left).
+        stopped: why it stopped: ``target``, ``levelled``, ``max-readings``,
+            ``max-minutes`` or ``candidates`` (none left).
         target_width: the stop rule's width (relative).
         read_now, resumed, resends: readings taken by this run, taken from the journal, and
             commands resent.
@@ -130,6 +139,13 @@ class AdaptiveResult:
         if self.stopped == "target":
             why = (f"the median 95 % half-width is at most {100 * self.target_width:g} %, and "
                    "the newest batch fell inside the previous round's intervals")
+        elif self.stopped == "levelled":
+            why = (f"the median 95 % half-width levelled off above the target "
+                   f"{100 * self.target_width:g} % ({LEVELLED_ROUNDS} rounds without "
+                   f"narrowing it by {100 * LEVELLED_GAIN:g} %): it is set by what the model "
+                   "misses between the measured incidences, and more readings of these "
+                   "geometries will not narrow it; give candidates at other incidences "
+                   "(--candidates), or accept this width")
         lines = [f"adaptive: stopped after {len(self.rounds)} round(s): {why}",
                  (f"adaptive: {len(self.data)} geometries read (sample + reference each) in "
                   f"{last.minutes:.1f} instrument minutes; model {last.model}; median 95 % "
@@ -279,8 +295,8 @@ class _Loop:
                                     f"{_percent(done.half_width)} (target "
                                     f"{_percent(target_width)}), {done.model}")
                 readings = len(self.plan.points)
-                stopped = _stop(done, readings, len(self.candidates), target_width,
-                                max_readings, max_minutes)
+                stopped = _stop(self.rounds[:k + 1], readings, len(self.candidates),
+                                target_width, max_readings, max_minutes)
                 if stopped:
                     return stopped
                 if k + 1 == len(self.batches):
@@ -351,9 +367,9 @@ def assess(data: Measurements, region: Measurements, model: str, seed: int) -> t
         warnings.simplefilter("ignore")
         try:
             if model == "auto":
-                from brdfjax.prediction.selection import compare_models
+                from brdfjax.prediction.design import auto_model
 
-                model = compare_models(data, seed=seed, discrepancy="gp").predictor.name
+                model = auto_model(data, seed)
             result = fit(data, model=model, seed=seed)
             if result.status in ("failed", "underdetermined"):
                 return model, math.inf, None
@@ -372,11 +388,14 @@ def inside(result, readings: Measurements) -> float:
         return predict(result, readings).coverage("95")
 
 
-def _stop(done: Round, readings: int, candidates: int, target_width, max_readings,
+def _stop(rounds: list, readings: int, candidates: int, target_width, max_readings,
           max_minutes) -> str | None:
-    """Why the run stops after the round ``done``, or None."""
+    """Why the run stops after the last of ``rounds``, or None."""
+    done = rounds[-1]
     if done.half_width <= target_width and (done.checked or 0.0) >= CHECKED:
         return "target"
+    if levelled(rounds):
+        return "levelled"
     if max_readings is not None and readings >= max_readings:
         return "max-readings"
     if max_minutes is not None and done.minutes >= max_minutes:
@@ -384,6 +403,17 @@ def _stop(done: Round, readings: int, candidates: int, target_width, max_reading
     if readings >= candidates:
         return "candidates"
     return None
+
+
+def levelled(rounds: list) -> bool:
+    """Whether the width has levelled off (`LEVELLED_ROUNDS`, `LEVELLED_GAIN`): the
+    narrowest of the last rounds is not clearly below the narrowest of the calibrated
+    rounds before them."""
+    widths = [r.half_width for r in rounds if math.isfinite(r.half_width)]
+    if len(widths) <= LEVELLED_ROUNDS:
+        return False
+    before, last = widths[:-LEVELLED_ROUNDS], widths[-LEVELLED_ROUNDS:]
+    return min(last) > (1 - LEVELLED_GAIN) * min(before)
 
 
 def plot_rounds(result: AdaptiveResult, path, title: str = "") -> None:
