@@ -226,6 +226,36 @@ def score(case: dict, strategy: str, batches, auto: bool) -> dict:
     return row
 
 
+def planning_speed(repeats: int = 5) -> list[float]:
+    """Warm seconds of `brdfjax.plan` choosing 20 readings from 300 measured among 5,000
+    candidates (issue 49's speed target): 300 of the PTFE grid (a new draw each call), the
+    candidates the grid, the random set and reachable geometries drawn uniformly (seed 0);
+    the first call (compilation) left out."""
+    import brdfjax
+    from brdfjax.data.measurements import Measurements
+    from brdfjax.instrument.plan import unreachable
+
+    ptfe = real_data("nist-germer-ptfe")
+    grid, scattered = (brdfjax.load(ptfe / name, wavelength_nm=532)
+                       for name in ("PTFE.data.csv", "PTFE.data.random.csv"))
+    rng = np.random.default_rng(0)
+    drawn = rng.uniform([0, 0, 0], [75, 85, 360], (3000, 3))
+    drawn = drawn[[unreachable(*g) is None for g in drawn]]
+    angles = np.vstack([np.degrees([d.theta_i, d.theta_r, d.phi_r]).T for d in (grid, scattered)]
+                       + [drawn])[:5000].T
+    candidates = Measurements.from_degrees(*angles, np.full(angles.shape[1], np.nan))
+    seconds = []
+    for k in range(repeats + 1):
+        measured = grid.select(np.isin(np.arange(len(grid)), np.random.default_rng(100 + k)
+                                       .choice(len(grid), 300, replace=False)))
+        started = time.perf_counter()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            brdfjax.plan(measured, candidates, 20, seed=0)
+        seconds.append(time.perf_counter() - started)
+    return seconds[1:]
+
+
 def at(rows: list[dict], case: str, strategy: str, readings: int | None = None) -> dict:
     """The row of ``case`` and ``strategy`` (at ``readings``; the full scan's without)."""
     return next(r for r in rows if r["set"] == case and r["strategy"] == strategy
@@ -367,7 +397,7 @@ def _curve(rows, panel, strategy):
     return x, np.array(y)
 
 
-def section(rows: list[dict], check: float, plan_seconds: float) -> str:
+def section(rows: list[dict], check: float, plan_seconds: float, speed: list) -> str:
     rt = [verdicts(rows, c["name"], c["kind"]) for c in CASES]
     lines = [
         "## Planning what to measure, replayed on real data",
@@ -389,7 +419,8 @@ def section(rows: list[dict], check: float, plan_seconds: float) -> str:
          "incidence: the cross-validation over incidences is out of reach there). Minutes: "
          "each batch's route (motor travel from home, `brdfjax.prediction.design.route`) "
          "plus 1 s of sample changer per reading, summed over batches. Nothing was tuned on "
-         "these sets (rungs, start and batch size fixed before the first run)."),
+         "these sets (rungs, start and batch size fixed before the first run); the sets "
+         "marked (decide) are those any later tuning is to use, the others confirm."),
         "",
         ("Targets (issue 49): the planner at 1/5 of the readings on every RT-300S run and 1/10 "
          "on PTFE within 1.2x of the full scan's median and 95th percentile error; its 95th "
@@ -412,6 +443,11 @@ def section(rows: list[dict], check: float, plan_seconds: float) -> str:
          f"{max(v['route'] for v in rt):.2f}. Planning time, all batches of all sets: "
          f"{plan_seconds:.0f} s."),
         "",
+        (f"Speed (target: at most 2 s warm): planning 20 readings from 300 measured among "
+         f"5,000 candidates took a median {np.median(speed):.2f} s warm "
+         f"({min(speed):.2f}-{max(speed):.2f} s, {len(speed)} calls, each from another 300 "
+         "of the PTFE grid; `planning_speed`)."),
+        "",
         "![error against readings](benchmarks/plan.png)",
     ]
     return "\n".join(lines)
@@ -427,7 +463,8 @@ def main() -> None:
                         help="two sets, printed; BENCHMARKS.md and the plot left alone")
     parser.add_argument("--rows", metavar="JSON",
                         help="write the table and plot from a run's rows (saved to "
-                             "ROWS_FILE by every run) instead of running")
+                             "ROWS_FILE by every run) instead of replaying; the speed is "
+                             "measured anew")
     args = parser.parse_args()
     report.DRY_RUN = args.quick
     import brdfjax
@@ -456,7 +493,9 @@ def report_rows(rows: list[dict], check: float, quick: bool) -> None:
     plan_seconds = sum(r.get("plan_seconds", 0.0) for r in rows)
     if not quick:
         figure(rows, REPO / "benchmarks" / "plan.png")
-    write_section("plan-replay", section(rows, check, plan_seconds))
+    speed = planning_speed()
+    print(f"planning speed: {speed}", flush=True)
+    write_section("plan-replay", section(rows, check, plan_seconds, speed))
 
 
 if __name__ == "__main__":
