@@ -25,3 +25,24 @@ def test_scipy_reaches_brdfjax_s_error_on_a_real_run():
                                                model="ggx")}
     assert runs["scipy vp"].error == pytest.approx(runs["brdfjax hybrid"].error, rel=1e-6)
     assert "| scipy vp |" in format_table(list(runs.values()))
+
+
+def test_models_tied_below_the_top_are_listed_fewest_parameters_first():
+    """Issue 47, defect 9: the README's rule (cv_errors within 0.1 % tie, and the model
+    with fewer parameters wins) held for the lowest only; ggx+backscatter with its lobe
+    off and ggx, tied under ggx+ggx, were listed by their last digits. The expected orders
+    are written out by hand from the rule."""
+    from types import SimpleNamespace
+
+    from brdfjax.prediction.selection import Comparison, ModelScore, ranked
+
+    errors = {"five": 0.116, "ggx+backscatter": 0.0018999, "ggx+ggx": 0.00155,
+              "ggx": 0.0019001, "lambert": float("nan"), "rpv": 0.116001, "beckmann": 0.05}
+    expected = ["ggx+ggx", "ggx", "ggx+backscatter", "beckmann", "rpv", "five", "lambert"]
+    assert ranked(errors) == expected
+    scores = [ModelScore(name, SimpleNamespace(), SimpleNamespace(cv_error=value), 0.0, 0.0,
+                         {}) for name, value in errors.items()]
+    assert Comparison(scores).ranking == expected
+    # a chain of small steps is not one tie: each group is measured from its own lowest
+    assert ranked({"ggx+ggx": 1.0, "ggx": 1.0008, "lambert": 1.0016}) == [
+        "ggx", "ggx+ggx", "lambert"]

@@ -223,12 +223,18 @@ TIE_ABSOLUTE = 1e-12
 
 
 def ranked(cv_errors: dict) -> list:
-    """Model names by cv_error, lowest first; a NaN (no interior fold) ranks last. Models
-    tied with the lowest (`tied_first`) come first by parameter count, fewest first."""
-    tied = tied_first(cv_errors)
-    order = sorted(cv_errors, key=lambda name: cv_errors[name] if np.isfinite(cv_errors[name])
-                   else np.inf)
-    return tied + [n for n in order if n not in tied]
+    """Model names by cv_error, lowest first; a NaN (no interior fold) ranks last. Ties go
+    to fewer parameters all the way down, not only at the top: models tied with the lowest
+    (`tied_first`) come first, fewest parameters first, then the same with the lowest of
+    the rest, and so on. So a sum with its second part switched off follows its first part
+    wherever the two rank, below another model too, as the README's rule reads."""
+    rest = {n: v for n, v in cv_errors.items() if np.isfinite(v)}
+    order = []
+    while rest:
+        tied = tied_first(rest)
+        order += tied
+        rest = {n: v for n, v in rest.items() if n not in tied}
+    return order + [n for n in cv_errors if n not in order]
 
 
 def tied_first(cv_errors: dict) -> list:
