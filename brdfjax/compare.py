@@ -14,7 +14,10 @@ Eq. (6) over the same box (the model's `brdfjax.models.bounds.default_bounds`), 
 - ``scipy de+ls (naive)``: ``differential_evolution`` over every parameter, then
   ``least_squares`` with a finite-difference Jacobian (`scipy_de_ls`);
 - ``pygad + ls``: pygad's genetic algorithm, then the same finite-difference
-  ``least_squares`` (`pygad_fit`), if pygad is installed.
+  ``least_squares`` (`pygad_fit`), if pygad is installed;
+- ``lmfit de+ls``: what a physicist writes with lmfit (`lmfit_fit`): ``lmfit.minimize``
+  with ``method="differential_evolution"`` over every parameter, then
+  ``method="least_squares"`` from its result, if lmfit is installed.
 
 Stopping rules (`TOLERANCES`): brdfjax's genetic search stops after ``max_generations``
 (40) or when no island's best E has improved by a relative 1e-6 for 15 generations (a model
@@ -24,6 +27,9 @@ polish (optimistix Levenberg-Marquardt, float64) stops at rtol = atol = 1e-10 or
 (popsize 15 per dimension, maxiter 1000, tol 0.01, atol 0: it stops when the population's
 standard deviation of E is below 0.01 of its mean), ``polish=False``; ``least_squares``
 (``trf``, box (0, 1)) with xtol = ftol = gtol = 1e-12. pygad runs 200 generations of 64.
+lmfit's differential evolution keeps lmfit's defaults (SciPy's settings with
+``polish=True``, at most 2000 (P + 1) evaluations), its ``least_squares`` the same
+tolerances as SciPy's.
 
 The SciPy objectives are built and compiled apart from the optimisers
 (`unit_objectives`), so a SciPy time is its optimiser's: `compare` and the benchmarks
@@ -60,6 +66,9 @@ TOLERANCES = {
     "scipy de+ls (naive)": "DE defaults (popsize 15/dim, maxiter 1000, tol 0.01); "
                            "least_squares trf, xtol = ftol = gtol = 1e-12, 2-point Jacobian",
     "pygad + ls": "200 generations x 64; least_squares as the naive peer",
+    "lmfit de+ls": "lmfit's DE defaults (SciPy's, polish=True, at most 2000 (P + 1) "
+                   "evaluations); lmfit least_squares trf, xtol = ftol = gtol = 1e-12, "
+                   "2-point Jacobian",
 }
 LEAST_SQUARES_TOLERANCE = 1e-12
 
@@ -306,6 +315,53 @@ def pygad_fit(data, seed: int = 0, bounds=None, *, model: str | Model | None = N
     return z, e, int(evaluations + ls.nfev * (model.size + 1)), e_ga
 
 
+def lmfit_fit(data, seed: int = 0, bounds=None, *, model: str | Model | None = None,
+              objectives: Objectives | None = None, polish: bool = True):
+    """lmfit, as a physicist fits a curve: ``lmfit.minimize(method="differential_evolution")``
+    over every parameter of the unit cube, then ``lmfit.minimize(method="least_squares")``
+    (finite-difference Jacobian) from its result unless ``polish`` is False.
+
+    The parameters are the unit-cube coordinates ``z0 .. z{P-1}`` (min 0, max 1): the same
+    box and scales as the other peers, through lmfit's `~lmfit.Parameters`. lmfit's
+    differential evolution keeps lmfit's defaults (SciPy's settings with ``polish=True``,
+    and at most 2000 (P + 1) evaluations, after which lmfit returns the last point
+    evaluated); its residual is the same `Objectives.residuals`, with a non-finite one
+    replaced by a large finite one (lmfit refuses NaN). No covariance is computed.
+
+    Returns:
+        (point, E, evaluations, E after differential evolution alone).
+    """
+    import lmfit
+
+    model = get(model)
+    objectives = unit_objectives(data, model, bounds) if objectives is None else objectives
+    names = [f"z{k}" for k in range(model.size)]
+
+    def vector(params):
+        return np.array([params[name].value for name in names])
+
+    def residual(params):
+        r = objectives.residuals(vector(params))
+        return r if np.all(np.isfinite(r)) else np.full(r.shape, 1e3)
+
+    params = lmfit.Parameters()
+    for name in names:
+        params.add(name, value=0.5, min=0.0, max=1.0)
+    de = lmfit.minimize(residual, params, method="differential_evolution", seed=seed,
+                        calc_covar=False)
+    z_de = np.clip(vector(de.params), 0.0, 1.0)
+    e_de, evaluations = objectives.error(z_de), de.nfev
+    if not polish:
+        return z_de, e_de, evaluations, e_de
+    tol = LEAST_SQUARES_TOLERANCE
+    ls = lmfit.minimize(residual, de.params, method="least_squares", calc_covar=False,
+                        xtol=tol, ftol=tol, gtol=tol)
+    z = np.clip(vector(ls.params), 0.0, 1.0)
+    e = objectives.error(z)
+    z, e = (z, e) if e <= e_de else (z_de, e_de)
+    return z, e, int(evaluations + ls.nfev), e_de
+
+
 def _timed(run, repeats):
     """Run once to warm up, then ``repeats`` times; the last result and the median time."""
     result = run()
@@ -344,7 +400,7 @@ def compare(data, seed: int = 0, repeats: int = 3, lm_starts: int = 32,
             hits = sum(e <= best * (1 + 1e-6) for e in single)
             note += f"; one start reaches the hybrid's E in {hits}/{lm_starts}"
         runs.append(MethodRun("brdfjax lm", result.error, seconds, result.evaluations, note))
-    objectives = unit_objectives(data, model) if {"scipy-vp", "scipy", "pygad"} & set(
+    objectives = unit_objectives(data, model) if {"scipy-vp", "scipy", "pygad", "lmfit"} & set(
         include) else None
     if "scipy-vp" in include:
         (_, e, evaluations), seconds = _timed(
@@ -364,6 +420,15 @@ def compare(data, seed: int = 0, repeats: int = 3, lm_starts: int = 32,
                                   f"GA alone ends at E = {100 * e_ga:.4g} %"))
         except ImportError:
             runs.append(MethodRun("pygad + ls", float("nan"), float("nan"), 0,
+                                  "not installed"))
+    if "lmfit" in include:  # not by default: `brdfjax compare` shows the tools it was built on
+        try:
+            (_, e, evaluations, e_de), seconds = _timed(
+                lambda: lmfit_fit(data, seed, model=model, objectives=objectives), repeats)
+            runs.append(MethodRun("lmfit de+ls", e, seconds, evaluations,
+                                  f"DE alone ends at E = {100 * e_de:.4g} %"))
+        except ImportError:
+            runs.append(MethodRun("lmfit de+ls", float("nan"), float("nan"), 0,
                                   "not installed"))
     return runs
 
