@@ -274,9 +274,10 @@ def _fit_hyperparameters(x, r, count, candidates):
     none is left to run the parts and the process hangs for ever (13 incidences, 110
     processes of 256 points: ``brdfjax models`` hung so). One matrix at a time is solved in
     the thread that asks, and the hang cannot happen. It also keeps a process's cost to its
-    own BFGS steps, where side by side every lane ran as many as the slowest, and it frees
-    the second core instead of waking it for each solve (a 20x slowdown when another job
-    held the cores).
+    own BFGS steps, where side by side every lane ran as many as the slowest. Each solve
+    is a LAPACK call of SciPy's OpenBLAS, whose idle threads spin: beside another busy job
+    they made this call 10-20x slower, which one OpenBLAS thread (``import brdfjax``'s
+    default) prevents (BENCHMARKS.md, section contention).
     """
     import optimistix as optx
 
