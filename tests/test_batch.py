@@ -615,3 +615,55 @@ def test_the_csv_flags_parameters_at_a_bound_and_poor_incidences(tmp_path, capsy
     printed = capsys.readouterr().out
     assert "kb =          1e-14   (at a bound)" in printed
     assert "E exceeds 3x the overall 1.7 % at 10 deg (17.7 %), 30 deg (17 %), 50 deg" in printed
+
+
+def test_values_at_a_bound_are_written_as_the_bound():
+    """Issue 47, defect 9: ggx on NiTE on steel A puts kd on its lower bound, and the batch
+    CSV said kd = 1.0000000000000061e-08 (the way back from log10 leaves float noise). The
+    value is the bound of the box now, and the CSV row its repr; other values keep every
+    digit."""
+    from brdfjax.commands.batch import columns_of, row
+    from brdfjax.fitting.batch import on_bounds
+    from brdfjax.models import get
+    from brdfjax.models.bounds import default_bounds
+
+    model = get("ggx")
+    lower = np.asarray(default_bounds(model).lower, float)
+    result = fit_batch([load(RAW / "NiTE_on_steel_v1o0A_20250915.xls")], model=model)[0]
+    assert result.at_bounds == ["kd"]
+    assert result.params[3] == lower[3] == 1e-8
+    csv_row = row("steel.xls", result.to_dict(), columns_of(model.names, False), "ggx")
+    assert csv_row["kd"] == "1e-08"
+    assert float(csv_row["ks"]) == result.params[0]  # every digit, the repr
+    # near a bound, by float noise or by far more; a zero bound, by the box's width
+    near = np.array([[1e-8 * (1 + 6e-15), 0.3, 1e-17, 100 * (1 - 1e-13)],
+                     [1e-8 * (1 + 1e-7), 0.3, 1e-9, 100 * (1 - 1e-9)]])
+    box = type(default_bounds(model))(np.array([1e-8, 0.002, 0.0, 1e-8]),
+                                      np.array([1e3, 2.0, 1.0, 100.0]), np.zeros(4))
+    np.testing.assert_array_equal(on_bounds(near, box),
+                                  [[1e-8, 0.3, 0.0, 100.0], near[1]])
+
+
+def test_model_auto_shows_a_progress_bar_while_it_chooses(monkeypatch, capsys):
+    """Issue 47, defect 9: ``batch --model auto`` was silent for about 30 s while it
+    cross-validated every model on its first samples. A bar counts them on stderr (here
+    with the comparison replaced by a stand-in, and one unreadable sample skipped)."""
+    from types import SimpleNamespace
+
+    from brdfjax.commands.batch import choose_model
+    from brdfjax.data.measurements import DataError
+    from brdfjax.prediction import selection
+
+    def compare(data, **_):
+        if data == "bad":
+            raise DataError("no readings")
+        return SimpleNamespace(scores=[SimpleNamespace(name="ggx", cv_error=0.01),
+                                       SimpleNamespace(name="five", cv_error=0.02)])
+
+    monkeypatch.setattr(selection, "compare_models", compare)
+    chosen = choose_model(["a", "bad", "b", "c"], SimpleNamespace(seed=0), read=lambda k: k)
+    assert chosen == "ggx"
+    err = capsys.readouterr().err
+    assert "--model auto: every model cross-validated on" in err
+    assert "3/4" in err and "1 unreadable, skipped" in err
+    assert err.rstrip().splitlines()[-1].startswith("--model auto: ggx, the lowest")

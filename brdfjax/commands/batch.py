@@ -611,25 +611,32 @@ def read_sample(key: str, args):
 def choose_model(keys, args, read=None) -> str:
     """``--model auto`` of a batch: one model for every sample, the one with the lowest
     median cv_error over the first `AUTO_SAMPLES` samples that can be compared (one model
-    keeps the CSV's columns, and the samples' parameters, comparable). Said on stderr."""
+    keeps the CSV's columns, and the samples' parameters, comparable). Said on stderr, after
+    a progress bar of the samples cross-validated (a few seconds each, the first with the
+    models' compilation: half a minute with empty caches)."""
     import numpy as np
+    from tqdm import tqdm
 
     from brdfjax.data.measurements import DataError
     from brdfjax.prediction.selection import choice_line, compare_models, ranked, tied_first
 
     errors, used, reasons = {}, 0, []
-    for key in keys:
-        try:
-            data = read(key) if read is not None else read_sample(key, args)
-            comparison = compare_models(data, seed=args.seed, discrepancy="none")
-        except (DataError, ValueError, OSError) as error:
-            reasons.append(f"{key}: {error}")
-            continue
-        for score in comparison.scores:
-            errors.setdefault(score.name, []).append(score.cv_error)
-        used += 1
-        if used == AUTO_SAMPLES:
-            break
+    with tqdm(total=min(AUTO_SAMPLES, len(keys)), unit="sample", file=sys.stderr,
+              desc="--model auto: every model cross-validated on") as bar:
+        for key in keys:
+            try:
+                data = read(key) if read is not None else read_sample(key, args)
+                comparison = compare_models(data, seed=args.seed, discrepancy="none")
+            except (DataError, ValueError, OSError) as error:
+                reasons.append(f"{key}: {error}")
+                bar.set_postfix_str(f"{len(reasons)} unreadable, skipped")
+                continue
+            for score in comparison.scores:
+                errors.setdefault(score.name, []).append(score.cv_error)
+            used += 1
+            bar.update()
+            if used == AUTO_SAMPLES:
+                break
     if not used:
         raise ValueError("--model auto: no sample could be cross-validated to choose a model "
                          f"({reasons[0] if reasons else 'no inputs'}); give --model NAME")

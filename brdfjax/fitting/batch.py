@@ -571,10 +571,27 @@ def _fitted(best, chunk: Problem, bounds: Bounds) -> tuple[np.ndarray, ...]:
     a shared one, XLA orders the arithmetic otherwise, and the last bits differ).
     """
     model, lanes = chunk.model, len(chunk.target)
-    vectors = np.stack([model.canonical(vector, bounds) for vector in best])
+    vectors = on_bounds(np.stack([model.canonical(vector, bounds) for vector in best]), bounds)
     scene = jax.tree.map(lambda x: np.broadcast_to(x, (lanes, x.shape[-1])), chunk.scene)
     values = _projected_lanes(vectors[_filled(len(best), lanes)], scene, model)
     return vectors, np.asarray(values)[:len(best)], to_unit(vectors, bounds)
+
+
+# A parameter this close to a bound (relative to the bound, or to the box's width where the
+# bound is 0) is the bound: the search's way back from its scaled coordinates (log10, asinh)
+# leaves float noise there (kd = 1.0000000000000061e-08 for the bound 1e-8), 6e-15 relative,
+# while no fit determines a parameter to 1e-12.
+BOUND_SNAP = 1e-12
+
+
+def on_bounds(vectors, bounds: Bounds) -> np.ndarray:
+    """``vectors`` (..., P) with every value within `BOUND_SNAP` of a bound set to it."""
+    vectors = np.array(vectors, dtype=float)
+    lower, upper = np.asarray(bounds.lower, float), np.asarray(bounds.upper, float)
+    for edge in (lower, upper):
+        scale = np.where(edge != 0, np.abs(edge), upper - lower)
+        vectors = np.where(np.abs(vectors - edge) <= BOUND_SNAP * scale, edge, vectors)
+    return vectors
 
 
 @stage
