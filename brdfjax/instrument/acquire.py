@@ -156,8 +156,7 @@ def measure(port: str, plan: Plan, out, *, journal=None, reference_reflectance: 
             every reading taken so far is in the journal.
         ValueError: the plan leaves the motors' ranges (raised before anything moves).
     """
-    if not 0 < reference_reflectance <= 1:
-        raise ValueError(f"reference reflectance {reference_reflectance} not in (0, 1]")
+    check_reference(reference_reflectance)
     journal_path = Path(out).with_suffix(".journal.jsonl") if journal is None else journal
     record = Journal(journal_path, plan)
     try:
@@ -174,6 +173,12 @@ def measure(port: str, plan: Plan, out, *, journal=None, reference_reflectance: 
 
     save(data, out)
     return MeasureResult(data, len(todo), resumed, resends, Path(journal_path))
+
+
+def check_reference(reference_reflectance: float) -> None:
+    """Refuse a reference plate's reflectance outside (0, 1]."""
+    if not 0 < reference_reflectance <= 1:
+        raise ValueError(f"reference reflectance {reference_reflectance} not in (0, 1]")
 
 
 def file_metadata(out, record: Journal, reference_reflectance: float,

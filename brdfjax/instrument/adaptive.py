@@ -43,6 +43,7 @@ from brdfjax.data.measurements import DataError, Measurements
 from brdfjax.instrument.acquire import (
     TARGETS,
     Journal,
+    check_reference,
     connected,
     file_metadata,
     to_measurements,
@@ -227,6 +228,7 @@ def measure_adaptive(port: str, region: Plan, out, *, candidates: Measurements |
         An `AdaptiveResult`.
     """
     candidates = region_geometry(region) if candidates is None else candidates
+    check_reference(reference_reflectance)
     check_settings(region, candidates, target_width=target_width, model=model, start=start,
                    batch=batch, max_readings=max_readings, max_minutes=max_minutes)
     settings = Settings(tuple(p.angles for p in region.points), digest(candidates), model,
@@ -234,7 +236,8 @@ def measure_adaptive(port: str, region: Plan, out, *, candidates: Measurements |
                         region.beam_margin)
     journal_path = Path(out).with_suffix(".journal.jsonl") if journal is None else journal
     record = Journal(journal_path, settings)
-    loop = _Loop(record, settings, candidates, region_geometry(region), progress)
+    loop = _Loop(record, settings, candidates, region_geometry(region),
+                 reference_reflectance, progress)
     try:
         resumed = len(record.readings)
         with connected(port, record, region, baud=baud, timeout=timeout,
@@ -252,9 +255,9 @@ def measure_adaptive(port: str, region: Plan, out, *, candidates: Measurements |
     result = AdaptiveResult(data, loop.rounds, stopped, target_width,
                             len(record.readings) - resumed, resumed, resends,
                             Path(journal_path))
+    save(data, out)
     if plot is not None:
         plot_rounds(result, plot, title=f"{Path(out).stem}: adaptive measurement")
-    save(data, out)
     return result
 
 
@@ -263,9 +266,10 @@ class _Loop:
     it are replayed, the rest measured and decided."""
 
     def __init__(self, record: Journal, settings: Settings, candidates: Measurements,
-                 region: Measurements, progress: bool):
+                 region: Measurements, reference_reflectance: float, progress: bool):
         self.record, self.settings = record, settings
         self.candidates, self.region, self.progress = candidates, region, progress
+        self.reference_reflectance = reference_reflectance
         self.batches = [tuple(map(tuple, b["geometries"])) for b in record.kept("batch")]
         self.rounds = [Round(r["readings"], r["minutes"], r["model"],
                              math.inf if r["half_width"] is None else r["half_width"],
@@ -313,7 +317,8 @@ class _Loop:
 
     def _data(self, k: int, only_last: bool = False) -> Measurements:
         """The readings of the batches up to ``k`` (of batch ``k`` alone: ``only_last``)."""
-        data = to_measurements(self._plan(k), self.record.readings, 1.0, {})
+        data = to_measurements(self._plan(k), self.record.readings,
+                               self.reference_reflectance, {})
         if only_last:
             data = data.select(np.arange(len(data)) >= len(data) - len(self.batches[k]))
         return data
