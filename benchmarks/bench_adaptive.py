@@ -116,21 +116,35 @@ def table(rows: list) -> str:
 
 
 def draw(rows: list, target: float) -> None:
+    """Width against readings, one line per run: the newer scans (120 geometries) and the
+    legacy 1-degree ones (600) in two panels, the stopping round filled."""
     from brdfjax.plot import _pyplot
 
     plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(7.0, 4.2))
-    for r in rows:
-        n, w = np.array(r["trace"], float).T
-        shown = np.isfinite(w)
-        ax.plot(n[shown] / r["total"], 100 * w[shown], "o-", ms=3, lw=1, alpha=0.8)
-    ax.axhline(100 * target, color="C3", ls="--", label=f"target {100 * target:g} %")
-    ax.set_xlabel("share of the scan's geometries read")
-    ax.set_ylabel("median 95 % half-width over the scan (%)")
-    ax.set_ylim(bottom=0)
-    ax.set_title("measure --adaptive on 14 RT-300S scans (one line each)", fontsize=10)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    groups = {size: [r for r in rows if r["total"] == size]
+              for size in sorted({r["total"] for r in rows})}
+    fig, axes = plt.subplots(1, len(groups), figsize=(5.6 * len(groups), 5.4), squeeze=False)
+    for ax, (size, group) in zip(axes[0], groups.items()):
+        for k, r in enumerate(group):
+            n, w = np.array(r["trace"], float).T
+            shown = np.isfinite(w)
+            stem, _, rest = r["name"].partition("_v1o0")
+            label = " ".join([stem.replace("ANOPLATE_", "").replace("_Alum6061", "")
+                              .replace("_", " "), rest[:1] if rest[:1].isalpha() else ""]
+                             ).strip()
+            line, = ax.plot(n[shown], 100 * w[shown], "o-", ms=3, lw=1, color=f"C{k}",
+                            label=f"{label}: {r['stopped']}")
+            ax.plot(n[-1], 100 * w[-1], "o", ms=8, color=line.get_color())
+        ax.axhline(100 * target, color="k", ls="--", lw=1, label=f"target {100 * target:g} %")
+        ax.set_xlabel(f"readings of the {size} geometries")
+        ax.set_ylim(0, 1.15 * max(100 * target, *(100 * w for r in group
+                                                   for _, w in r["trace"] if np.isfinite(w))))
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2,
+                  frameon=False)
+    axes[0][0].set_ylabel("median 95 % half-width over the scan (%)")
+    fig.suptitle("measure --adaptive on the RT-300S scans: width against readings "
+                 "(large dot: where it stopped)", fontsize=10)
     fig.tight_layout()
     fig.savefig(FIGURE, dpi=120)
     plt.close(fig)
