@@ -389,6 +389,7 @@ def test_adaptive_measurement_stops_on_the_width_with_honest_intervals(adaptive_
     assert rounds[0]["checked"] is None
     assert len(data) == rounds[-1]["readings"] < len(region.points)  # ...before the grid
     assert [r["readings"] for r in rounds] == list(range(12, len(data) + 1, 8))
+    assert out.with_suffix(".adaptive.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     # Every reading was read where a batch said, each geometry once, and the geometries
     # are the region's.
     listed = np.concatenate([b["geometries"] for b in journal_records(journal, "batch")])
