@@ -1,4 +1,5 @@
-"""Fitting benchmarks: accuracy targets, run time against error, and speed against SciPy.
+"""Fitting benchmarks: accuracy targets and speed against SciPy (run time against error:
+`bench_profile.py`).
 
     .venv/bin/python benchmarks/bench_fit.py [--quick]
 
@@ -8,7 +9,6 @@ Sections written to BENCHMARKS.md:
 - ``noisy``: 2.5 % noise, E against the best of a long multi-start search, 20 seeds each.
 - ``real``: every real RT-300S run, brdfjax hybrid against generous scipy DE + LS.
 - ``speed``: warm hybrid on the 716-point white-paint set against scipy DE + LS.
-- ``compare``: run time against error of every method (table and `benchmarks/compare.png`).
 - ``cold``: `brdfjax fit` as a new process, first run ever and with a warm cache.
 """
 
@@ -35,8 +35,6 @@ from benchmarks import report
 from benchmarks.report import write_section
 from brdfjax.compare import (
     TOLERANCES,
-    compare,
-    format_table,
     scipy_de_ls,
     scipy_vp,
     unit_objectives,
@@ -214,39 +212,6 @@ def bench_speed(repeats):
                   "the naive one.")
 
 
-def bench_compare(repeats):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    sets = {"white paint (synthetic, 716 pts)": white_paint_train(),
-            "NiTE on steel A (real)": load(RT300S / "raw" /
-                                            "NiTE_on_steel_v1o0A_20250915.xls", in_plane=True)}
-    text, fig = [], plt.figure(figsize=(11, 4.5))
-    for k, (label, data) in enumerate(sets.items()):
-        runs = compare(data, repeats=repeats)
-        text.append(f"### {label}\n\n{format_table(runs)}")
-        ax = fig.add_subplot(1, 2, k + 1)
-        for run in runs:
-            if np.isfinite(run.seconds):
-                ax.loglog(run.seconds, run.error, "o")
-                ax.annotate(run.method, (run.seconds, run.error), fontsize=8)
-        ax.set_xlabel("warm wall time (s)")
-        ax.set_ylabel("E reached")
-        ax.set_title(label, fontsize=9)
-        ax.grid(alpha=0.3, which="both")
-    fig.tight_layout()
-    fig.savefig(REPO / "benchmarks" / "compare.png", dpi=110)
-    write_section("compare", "## Run time against error: GA vs gradient vs SciPy and pygad\n\n"
-                  "Same model, data and box; warm medians. `brdfjax lm` counts how often a "
-                  "single random start reaches the hybrid's E (its success rate). The white "
-                  "paint is fitted on the paper's training incidences (10/30/45/60 deg, 716 "
-                  "points); `brdfjax compare data/synthetic/white_paint.csv` fits all six "
-                  "(1074 points), so its E differs.\n\n"
-                  + "\n\n".join(text) + "\n\n![E vs time](benchmarks/compare.png)")
-
-
 SCIPY_SCRIPT = """
 import sys, numpy as np
 from scipy.optimize import differential_evolution, least_squares
@@ -335,7 +300,6 @@ if __name__ == "__main__":
     sections = {"population": lambda: bench_population(repeats),
                 "recovery": lambda: bench_recovery(seeds),
                 "speed": lambda: bench_speed(repeats),
-                "compare": lambda: bench_compare(min(repeats, 5)),
                 "cold": bench_cold,
                 "real": bench_real,
                 "noisy": lambda: bench_noisy(seeds)}
