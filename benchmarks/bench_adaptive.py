@@ -155,8 +155,11 @@ def main() -> None:
     parser.add_argument("--runs", choices=("decide", "confirm", "all"), default="all")
     parser.add_argument("--target", type=float, default=20.0, help="percent (default 20)")
     parser.add_argument("--model", default="ggx")
+    parser.add_argument("--quick", action="store_true", help="the first run only, no writing")
     args = parser.parse_args()
     runs = {"decide": RUNS[:DECIDE], "confirm": RUNS[DECIDE:], "all": RUNS}[args.runs]
+    if args.quick:
+        runs, args.runs = runs[:1], "decide"
     rows = []
     for path in runs:
         rows.append(one_run(path, args.target / 100, args.model))
@@ -174,7 +177,7 @@ def main() -> None:
                 "grid on average")
 
     body = "\n".join([
-        "## measure --adaptive: an honest stop on real scans", "",
+        '<a id="adaptive"></a>', "## measure --adaptive: an honest stop on real scans", "",
         (f"`measure --adaptive --model {args.model} --target-width {args.target:g}` on a "
         "simulator driven by each RT-300S in-plane scan (the scan's own geometries are the "
         "region and the only candidates; start 20, batches of 10). Coverage, realised "

@@ -4,7 +4,7 @@
 
 Timings share the machine's cores, so the scripts run in turn, never side by side. Each
 writes its sections of BENCHMARKS.md itself (``--quick`` runs write nothing where the
-script says so). About an hour and a half on a 2-core machine.
+script says so). About three hours on a 2-core machine.
 """
 
 from __future__ import annotations
@@ -16,8 +16,9 @@ import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-SCRIPTS = ("bench_fit.py", "bench_uncertainty.py", "bench_batch.py", "bench_models.py",
-           "bench_dense.py", "bench_predictive.py")
+SCRIPTS = ("bench_fit.py", "bench_profile.py", "bench_uncertainty.py", "bench_batch.py",
+           "bench_models.py", "bench_dense.py", "bench_predictive.py", "bench_plan.py",
+           "bench_adaptive.py", "bench_contention.py")
 
 
 def main() -> int:

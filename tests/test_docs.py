@@ -57,7 +57,8 @@ def test_the_site_builds_strictly_with_every_name_command_and_notebook(tmp_path)
         assert f"Defined in {module.__name__}." in models, name
         assert docstring.splitlines()[0].replace("``", "") in models, name
         assert all(p.reason in models for p in model.parameters), name  # '|' kept in its cell
-    assert (site / "benchmarks" / "compare.png").is_file()
+    for figure in ("profile", "anytime", "plan", "adaptive"):  # BENCHMARKS.md's figures
+        assert (site / "benchmarks" / f"{figure}.png").is_file(), figure
     for notebook in (REPO / "notebooks").glob("*.ipynb"):
         assert (site / "notebooks" / notebook.stem / "index.html").is_file(), notebook.name
 

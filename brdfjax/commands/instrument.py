@@ -61,8 +61,7 @@ def register(subparsers) -> None:
                       help="skip geometries with the detector this close to the source "
                            "(default 5)")
     adaptive = p.add_argument_group(
-        "adaptive measurement (--adaptive): read only what the prediction over the plan's "
-        "geometries needs")
+        "adaptive (--adaptive): read what the prediction over the plan needs")
     adaptive.add_argument("--adaptive", action="store_true",
                           help="a closed loop: a space-filling start, then fit, predict over "
                                "the plan's geometries and read the batch that most narrows "
