@@ -186,7 +186,7 @@ def main() -> None:
         table(rows), "",
         f"- decided on (the first {DECIDE}): {pooled(decide)}",
         f"- confirmed on (the rest, not looked at before): {pooled(confirm)}", "",
-        "![width against the share read](benchmarks/adaptive.png)"])
+        "![width against readings](benchmarks/adaptive.png)"])
     if args.runs == "all":
         draw(rows, args.target / 100)
         write_section("adaptive", body)

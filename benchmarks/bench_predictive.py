@@ -393,7 +393,8 @@ def bench_unseen(models, quick: bool):
     of other instruments and surfaces (`unseen_sets`), none of which chose any setting."""
     import brdfjax
 
-    lines = ["## Predictions on instruments and surfaces never used to build them", "",
+    lines = ['<a id="predictive-unseen"></a>',
+             "## Predictions on instruments and surfaces never used to build them", "",
              ("Each interior incidence held out in turn, the model fitted on the others, and "
               "predicted by the model alone (`none`) and by the model times its learned "
               "discrepancy (`gp`), with the intervals calibrated on the training incidences' "
