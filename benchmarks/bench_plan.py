@@ -20,9 +20,9 @@ discrepancy, as ``brdfjax fit --predict`` predicts: the point prediction of
 `brdfjax.predict` (checked equal on one set), without the conformal cross-validation, which
 sets the intervals and not the prediction. The ladder uses ggx; the target rung (1/5 of the
 pool on RT-300S, 1/10 on PTFE) and the full scan are also scored with ``--model auto`` as
-``fit --model auto --predict`` chooses (`brdfjax.prediction.design.auto_model`) where that
+``fit --model auto --predict`` chooses (`brdfjax.instrument.design.auto_model`) where that
 runs in reasonable time (not on the random PTFE set, whose every reading has its own
-incidence). Instrument time: each batch's route (`brdfjax.prediction.design.route`, motor
+incidence). Instrument time: each batch's route (`brdfjax.instrument.design.route`, motor
 travel from the home position) plus the sample changer, summed over the batches.
 
 Nothing was tuned on these sets: the rungs, the start and the batch size were fixed before
@@ -89,15 +89,15 @@ def ladder(pool_size: int, kind: str) -> list[int]:
 
 
 def key_index(pool) -> dict:
-    """Pool position of every geometry (`brdfjax.prediction.design._keys`)."""
-    from brdfjax.prediction.design import _keys
+    """Pool position of every geometry (`brdfjax.instrument.design._keys`)."""
+    from brdfjax.instrument.design import _keys
 
     return {tuple(row): k for k, row in enumerate(_keys(pool))}
 
 
 def positions(chosen, index: dict) -> list[int]:
-    """Pool positions of a `brdfjax.prediction.design.Plan`'s geometries, in its order."""
-    from brdfjax.prediction.design import _keys
+    """Pool positions of a `brdfjax.instrument.design.Plan`'s geometries, in its order."""
+    from brdfjax.instrument.design import _keys
 
     return [index[tuple(row)] for row in _keys(chosen.geometry())]
 
@@ -105,7 +105,7 @@ def positions(chosen, index: dict) -> list[int]:
 def planner_batches(pool, rungs: list[int]) -> dict[int, list[list[int]]]:
     """The planner's batches (pool positions) up to each rung: a space-filling start of the
     first rung, then `BATCHES` ALC batches to each next rung."""
-    from brdfjax.prediction.design import plan
+    from brdfjax.instrument.design import plan
 
     index = key_index(pool)
     batches = [positions(plan(None, pool, rungs[0], seed=0), index)]
@@ -135,8 +135,8 @@ def one_batch(pool, strategy: str, count: int) -> list[list[int]]:
 def minutes(pool, batches) -> tuple[float, float]:
     """Instrument minutes of ``batches`` (each routed from home, plus the changer) and the
     ratio of their motor time to the same batches in sweep order."""
+    from brdfjax.instrument.design import route
     from brdfjax.instrument.simulator import CHANGER_SECONDS
-    from brdfjax.prediction.design import route
 
     motor = sweep = 0.0
     for batch in batches:
@@ -167,8 +167,8 @@ def predicted(train, test, model: str) -> np.ndarray:
 
 def errors(train, test, model: str) -> tuple[float, float, str]:
     """Median and 95th percentile relative error on ``test`` (%), and the model used
-    (``auto``: `brdfjax.prediction.design.auto_model` of ``train``)."""
-    from brdfjax.prediction.design import auto_model
+    (``auto``: `brdfjax.instrument.design.auto_model` of ``train``)."""
+    from brdfjax.instrument.design import auto_model
 
     if model == "auto":
         with warnings.catch_warnings():
@@ -417,7 +417,7 @@ def section(rows: list[dict], check: float, plan_seconds: float, speed: list) ->
          "rung and the full scan are also scored with `--model auto` as `fit --model auto "
          "--predict` chooses, except on the random PTFE pool (every reading its own "
          "incidence: the cross-validation over incidences is out of reach there). Minutes: "
-         "each batch's route (motor travel from home, `brdfjax.prediction.design.route`) "
+         "each batch's route (motor travel from home, `brdfjax.instrument.design.route`) "
          "plus 1 s of sample changer per reading, summed over batches. Nothing was tuned on "
          "these sets (rungs, start and batch size fixed before the first run); the sets "
          "marked (decide) are those any later tuning is to use, the others confirm."),
@@ -468,7 +468,7 @@ def main() -> None:
     args = parser.parse_args()
     report.DRY_RUN = args.quick
     import brdfjax
-    from brdfjax.prediction.design import one_blas_thread
+    from brdfjax.instrument.design import one_blas_thread
 
     brdfjax.cache.enable()
     CASES.extend(replay_sets(args.quick))

@@ -102,7 +102,7 @@ _EXPORTS = {
     "predict": "brdfjax.prediction.intervals",
     "Prediction": "brdfjax.prediction.intervals",
     "compare_models": "brdfjax.prediction.selection",
-    "plan": "brdfjax.prediction.design",
+    "plan": "brdfjax.instrument.design",
     "Comparison": "brdfjax.prediction.selection",
     "Model": "brdfjax.models",
     "Bounds": "brdfjax.models.bounds",

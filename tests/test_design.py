@@ -1,4 +1,4 @@
-"""`brdfjax plan` (`brdfjax.prediction.design`): the integrated-variance criterion against
+"""`brdfjax plan` (`brdfjax.instrument.design`): the integrated-variance criterion against
 a brute-force Gaussian-process update, the space-filling start, determinism, the motor
 route, and the command's files and bad input."""
 
@@ -12,9 +12,7 @@ from conftest import DATA
 from brdfjax.cli import main
 from brdfjax.data.formats import load, load_geometry
 from brdfjax.data.measurements import Measurements
-from brdfjax.instrument.plan import load_plan
-from brdfjax.instrument.simulator import MOTOR_SPEED
-from brdfjax.prediction.design import (
+from brdfjax.instrument.design import (
     instrument_grid,
     integrated_variance_design,
     motor_seconds,
@@ -22,6 +20,8 @@ from brdfjax.prediction.design import (
     process_kernel,
     route,
 )
+from brdfjax.instrument.plan import load_plan
+from brdfjax.instrument.simulator import MOTOR_SPEED
 from brdfjax.prediction.discrepancy import _kernel, _physical, _unconstrained, features
 
 
@@ -185,7 +185,7 @@ def test_bad_input_is_one_line_before_any_work(tmp_path, capsys):
 
 
 def test_a_measured_geometry_is_left_out_whatever_its_azimuth_is_written_as():
-    from brdfjax.prediction.design import check_inputs
+    from brdfjax.instrument.design import check_inputs
 
     candidates = Measurements.from_degrees([30, 30, 30], [40, 40, 0], [278.1301, 100, 45],
                                            np.full(3, np.nan))
@@ -221,8 +221,8 @@ def test_auto_plans_with_the_predictor_of_the_comparison(measured, monkeypatch):
 def test_auto_chooses_the_model_the_data_were_made_with(measured, monkeypatch):
     # The white paint is the paper's model with 2.5 % noise: of it and a constant, auto
     # chooses the paper's model (not the default ggx). 30 s cold, hence slow.
+    from brdfjax.instrument.design import auto_model
     from brdfjax.prediction import selection
-    from brdfjax.prediction.design import auto_model
 
     monkeypatch.setattr(selection, "DEFAULT_CANDIDATES", ("lambert", "five"))
     assert auto_model(measured, seed=1) == "five"
@@ -244,7 +244,7 @@ def test_auto_needs_three_incidences(measured, tmp_path, capsys):
 
 
 def test_planning_runs_with_one_blas_thread_and_puts_the_count_back():
-    from brdfjax.prediction.design import _openblas_controls, one_blas_thread
+    from brdfjax.instrument.design import _openblas_controls, one_blas_thread
 
     controls = _openblas_controls()
     if not controls:

@@ -122,7 +122,7 @@ def test_fit_curves_pass_through_the_peaks_and_bands_are_named_not_faint(tmp_pat
     legend = {t.get_text(): h for t, h in zip(ax.get_legend().get_texts(),
                                                ax.get_legend().legend_handles)}
     assert legend["35 deg predicted (not measured)"].get_linestyle() == ":"
-    assert legend["fitted five model at an incidence not measured"].get_linestyle() == "-."
+    assert legend["fitted five model at an incidence the data lack"].get_linestyle() == "-."
     drawn = [line.get_ydata() for line in ax.get_lines() if len(line.get_ydata()) == 361]
     assert any(np.array_equal(y, 1.05 * curve) for y in drawn)  # the prediction, dotted
     assert any(np.allclose(y, curve, rtol=1e-12) for y in drawn)  # the model, dash-dotted

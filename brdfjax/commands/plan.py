@@ -1,5 +1,5 @@
 """``brdfjax plan``: choose the next geometries to measure, as a geometry CSV and a
-measurement plan (`brdfjax.prediction.design`)."""
+measurement plan (`brdfjax.instrument.design`)."""
 
 from __future__ import annotations
 
@@ -48,7 +48,7 @@ def run_plan(args) -> None:
 
     from brdfjax.data.formats import load, load_geometry, write_atomically
     from brdfjax.data.measurements import DataError
-    from brdfjax.prediction.design import check_inputs, instrument_grid, plan
+    from brdfjax.instrument.design import check_inputs, instrument_grid, plan
 
     if args.budget < 1:
         raise ValueError(f"--budget {args.budget}: give the number of readings to plan, a "

@@ -11,6 +11,10 @@ The modules, in the order data flow through them:
 - `brdfjax.instrument.plan`: `Plan`, what to measure, from options or a TOML file.
 - `brdfjax.instrument.acquire`: `measure`, the journaled, resumable acquisition that writes
   a measurement file by the reference-sample method, Eq. (7)-(8).
+- `brdfjax.instrument.design`: `plan`, which geometries to read next (integrated variance of
+  the learned discrepancy, or space-filling from nothing) and the route for the motors.
+- `brdfjax.instrument.adaptive`: `measure_adaptive`, the closed loop of plan, measure and
+  predict that stops when the prediction is as narrow as asked.
 
 The driver needs pyserial (``pip install brdfjax[instrument]``); the simulator does not.
 """

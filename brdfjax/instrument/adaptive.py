@@ -1,6 +1,6 @@
 """Adaptive measurement: read what the prediction needs, and stop when it is good enough.
 
-`measure_adaptive` closes the loop of `brdfjax.prediction.design.plan` over the instrument.
+`measure_adaptive` closes the loop of `brdfjax.instrument.design.plan` over the instrument.
 The region is where the prediction is wanted (a grid plan's geometries); the candidates are
 the geometries the loop may read (by default the region's own):
 
@@ -169,8 +169,8 @@ def digest(candidates: Measurements) -> str:
 def check_settings(region: Plan, candidates: Measurements, *, target_width: float,
                    model: str, start: int, batch: int, max_readings, max_minutes) -> None:
     """Refuse bad settings in one line naming the option, before any motor moves."""
+    from brdfjax.instrument.design import check_inputs
     from brdfjax.models import get
-    from brdfjax.prediction.design import check_inputs
 
     if not target_width > 0:
         raise ValueError(f"--target-width {_percent(target_width)}: give the median 95 % "
@@ -325,7 +325,7 @@ class _Loop:
 
     def _next(self, data, size, model=None) -> tuple:
         """The next batch's geometries, in route order."""
-        from brdfjax.prediction.design import plan
+        from brdfjax.instrument.design import plan
 
         if model is not None and model.startswith("auto"):
             model = "ggx"  # auto could not choose yet (too few incidences)
@@ -372,7 +372,7 @@ def assess(data: Measurements, region: Measurements, model: str, seed: int) -> t
         warnings.simplefilter("ignore")
         try:
             if model == "auto":
-                from brdfjax.prediction.design import auto_model
+                from brdfjax.instrument.design import auto_model
 
                 model = auto_model(data, seed)
             result = fit(data, model=model, seed=seed)

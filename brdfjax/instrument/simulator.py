@@ -59,7 +59,7 @@ MOTOR_LIMITS = {"A": (0.0, 180.0), "B": (0.0, 80.0), "C": (-87.0, 87.0)}
 # source direction, the head is in the incident beam.
 BLOCKED_DEGREES = 3.0
 # The default motor speed (deg/s, every motor) and sample-changer swap time (s); the cost
-# model of `brdfjax.prediction.design`'s routes.
+# model of `brdfjax.instrument.design`'s routes.
 MOTOR_SPEED = 20.0
 CHANGER_SECONDS = 1.0
 NOISE_INTEGRATION_MS = 10.0  # the integration time at which --noise is the relative noise
