@@ -413,24 +413,23 @@ def compare(data, seed: int = 0, repeats: int = 3, lm_starts: int = 32,
         runs.append(MethodRun("scipy de+ls (naive)", e, seconds, evaluations,
                               "every parameter in DE, finite-difference least_squares"))
     if "pygad" in include:
-        try:
-            (_, e, evaluations, e_ga), seconds = _timed(
-                lambda: pygad_fit(data, seed, model=model, objectives=objectives), repeats)
-            runs.append(MethodRun("pygad + ls", e, seconds, evaluations,
-                                  f"GA alone ends at E = {100 * e_ga:.4g} %"))
-        except ImportError:
-            runs.append(MethodRun("pygad + ls", float("nan"), float("nan"), 0,
-                                  "not installed"))
+        runs.append(_optional_peer("pygad + ls", "GA", lambda: pygad_fit(
+            data, seed, model=model, objectives=objectives), repeats))
     if "lmfit" in include:  # not by default: `brdfjax compare` shows the tools it was built on
-        try:
-            (_, e, evaluations, e_de), seconds = _timed(
-                lambda: lmfit_fit(data, seed, model=model, objectives=objectives), repeats)
-            runs.append(MethodRun("lmfit de+ls", e, seconds, evaluations,
-                                  f"DE alone ends at E = {100 * e_de:.4g} %"))
-        except ImportError:
-            runs.append(MethodRun("lmfit de+ls", float("nan"), float("nan"), 0,
-                                  "not installed"))
+        runs.append(_optional_peer("lmfit de+ls", "DE", lambda: lmfit_fit(
+            data, seed, model=model, objectives=objectives), repeats))
     return runs
+
+
+def _optional_peer(method: str, search: str, run, repeats: int) -> MethodRun:
+    """The `MethodRun` of a peer whose library may be missing (pygad, lmfit): ``run()``
+    returns ``(params, E, evaluations, E of its global search alone)``."""
+    try:
+        (_, e, evaluations, e_search), seconds = _timed(run, repeats)
+    except ImportError:
+        return MethodRun(method, float("nan"), float("nan"), 0, "not installed")
+    return MethodRun(method, e, seconds, evaluations,
+                     f"{search} alone ends at E = {100 * e_search:.4g} %")
 
 
 def format_table(runs) -> str:
