@@ -1,6 +1,8 @@
 """Shared test setup: float64 on, caches kept out of the home directory, data paths."""
 
 import os
+import signal
+import subprocess
 import tempfile
 from pathlib import Path
 
@@ -71,3 +73,16 @@ def dask_scheduler(environment, monkeypatch):
     with distributed.LocalCluster(n_workers=2, processes=True, threads_per_worker=1,
                                   host="127.0.0.1", dashboard_address=None) as cluster:
         yield cluster.scheduler_address
+
+
+def interruptible(command, **options) -> subprocess.Popen:
+    """``subprocess.Popen(command, **options)`` with SIGINT reaching the child's Python: a
+    shell that runs the suite in the background (``make test &``) ignores SIGINT, and an
+    ignored signal stays ignored across exec, so the child would install no
+    KeyboardInterrupt handler and run on untouched; a handler set here is reset to the
+    default at exec instead."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        return subprocess.Popen(command, **options)
+    finally:
+        signal.signal(signal.SIGINT, previous)

@@ -16,7 +16,7 @@ from pathlib import Path
 import jax
 import numpy as np
 import pytest
-from conftest import REAL
+from conftest import REAL, interruptible
 
 from brdfjax.cluster import fit_chunk
 from brdfjax.commands.batch import expand
@@ -353,12 +353,8 @@ def stop_after_first_chunk(command, out, environment, how: int) -> subprocess.Po
     in it, and an ignored signal stays ignored across exec: Python would then install no
     KeyboardInterrupt handler in the run, which would finish untouched. A handler set here
     is reset to the default at exec instead."""
-    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
-    try:
-        process = subprocess.Popen(command, env=environment, stdout=subprocess.DEVNULL,
-                                   stderr=subprocess.DEVNULL)
-    finally:
-        signal.signal(signal.SIGINT, previous)
+    process = interruptible(command, env=environment, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
     deadline = time.monotonic() + 240
     while count_rows(out) == 0 and process.poll() is None:
         assert time.monotonic() < deadline, "no chunk written in 240 s"

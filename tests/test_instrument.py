@@ -11,6 +11,7 @@ import sys
 import numpy as np
 import pytest
 import serial
+from conftest import interruptible
 
 from brdfjax.cli import build_parser, main
 from brdfjax.commands.instrument import scan_plan
@@ -423,8 +424,8 @@ def test_adaptive_measurement_interrupted_resumes_with_the_same_decisions(
     _, port = simulator()
     command = [sys.executable, "-m", "brdfjax.cli", "measure", "--port", port, "--out",
                str(out), *REGION, *ADAPTIVE]
-    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                               text=True)
+    process = interruptible(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
     deadline = time.monotonic() + 200
     # Interrupted once the start is read: two rounds at least are left (the first has no
     # batch to check its intervals), so it is fitting or reading, never done (a fixed wait

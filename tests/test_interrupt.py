@@ -14,22 +14,15 @@ import sys
 import time
 
 import pytest
-from conftest import REAL, REPO
+from conftest import REAL, REPO, interruptible
 
 RT300S = REAL / "uaz-loft-rt300s"
 SMALL = ["--population-size=64", "--max-generations=15", "--starts=8", "--max-steps=40"]
 
 
 def start(command, environment, stderr=subprocess.DEVNULL) -> subprocess.Popen:
-    """Start ``command`` so that SIGINT reaches Python's handler: a shell that runs the suite
-    in the background (``make test &``) ignores SIGINT, and an ignored signal stays ignored
-    across exec; a handler set here is reset to the default at exec instead."""
-    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
-    try:
-        return subprocess.Popen(command, env=environment, stdout=subprocess.DEVNULL,
-                                stderr=stderr)
-    finally:
-        signal.signal(signal.SIGINT, previous)
+    """Start ``command`` so that SIGINT reaches Python's handler (`conftest.interruptible`)."""
+    return interruptible(command, env=environment, stdout=subprocess.DEVNULL, stderr=stderr)
 
 
 def rows(path) -> list[dict]:
