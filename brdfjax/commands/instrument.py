@@ -16,9 +16,6 @@ from brdfjax.commands import (
 
 PLAN_OPTIONS = ("theta_r_step", "theta_r_max", "azimuth", "average", "integration_ms",
                 "beam_margin")
-ADAPTIVE_DEFAULTS = {"target_width": 10.0, "start": 20, "batch": 10, "max_readings": None,
-                     "max_minutes": None, "candidates": None, "model": "ggx", "seed": 0,
-                     "plot": None}
 
 
 def register(subparsers) -> None:
@@ -66,28 +63,33 @@ def register(subparsers) -> None:
                           help="a closed loop: a space-filling start, then fit, predict over "
                                "the plan's geometries and read the batch that most narrows "
                                "the prediction, until --target-width or a budget is reached")
-    adaptive.add_argument("--target-width", type=float, default=10.0, metavar="PERCENT",
-                          help="stop when the median calibrated 95 %% half-width over the "
-                               "plan's geometries is at most this, in %% (default 10)")
-    adaptive.add_argument("--start", type=int, default=20, metavar="N",
-                          help="readings of the space-filling start (default 20)")
-    adaptive.add_argument("--batch", type=int, default=10, metavar="N",
-                          help="readings planned per round (default 10)")
-    adaptive.add_argument("--max-readings", type=int, metavar="N",
-                          help="stop after this many readings (checked between rounds)")
-    adaptive.add_argument("--max-minutes", type=float, metavar="MIN",
-                          help="stop after this much instrument time (checked between rounds)")
-    adaptive.add_argument("--candidates", metavar="GEOM",
-                          help="the geometries that may be read (a file; default: the plan's)")
-    adaptive.add_argument("--model", default="ggx", metavar="NAME",
-                          help="the model that predicts, as in fit (default ggx; auto: the "
-                               "one brdfjax models recommends, chosen each round)")
-    adaptive.add_argument("--seed", type=int, default=0,
-                          help="seeds the start, the fits and the plans (default 0)")
-    adaptive.add_argument("--plot", metavar="PNG",
-                          help="the figure of width against readings (default: FILE with "
-                               "the suffix .adaptive.png)")
-    p.set_defaults(run=run_measure)
+    options = []  # the adaptive options but --adaptive itself, for "only with --adaptive"
+
+    def option(*names, **settings):
+        options.append(adaptive.add_argument(*names, **settings))
+
+    option("--target-width", type=float, default=10.0, metavar="PERCENT",
+           help="stop when the median calibrated 95 %% half-width over the "
+                "plan's geometries is at most this, in %% (default 10)")
+    option("--start", type=int, default=20, metavar="N",
+           help="readings of the space-filling start (default 20)")
+    option("--batch", type=int, default=10, metavar="N",
+           help="readings planned per round (default 10)")
+    option("--max-readings", type=int, metavar="N",
+           help="stop after this many readings (checked between rounds)")
+    option("--max-minutes", type=float, metavar="MIN",
+           help="stop after this much instrument time (checked between rounds)")
+    option("--candidates", metavar="GEOM",
+           help="the geometries that may be read (a file; default: the plan's)")
+    option("--model", default="ggx", metavar="NAME",
+           help="the model that predicts, as in fit (default ggx; auto: the "
+                "one brdfjax models recommends, chosen each round)")
+    option("--seed", type=int, default=0,
+           help="seeds the start, the fits and the plans (default 0)")
+    option("--plot", metavar="PNG",
+           help="the figure of width against readings (default: FILE with "
+                "the suffix .adaptive.png)")
+    p.set_defaults(run=run_measure, adaptive_defaults={a.dest: a.default for a in options})
 
     p = subparsers.add_parser("instrument", help="instrument tools (the simulator)")
     tools = p.add_subparsers(dest="tool", required=True, metavar="TOOL")
@@ -164,7 +166,7 @@ def run_measure(args) -> None:
     if args.adaptive:
         run_adaptive(args, plan)
         return
-    given = [f"--{name.replace('_', '-')}" for name, default in ADAPTIVE_DEFAULTS.items()
+    given = [f"--{name.replace('_', '-')}" for name, default in args.adaptive_defaults.items()
              if getattr(args, name) != default]
     if given:
         raise ValueError(f"{', '.join(given)}: only with --adaptive")
@@ -201,7 +203,7 @@ def run_adaptive(args, region) -> None:
     settings = {"target_width": args.target_width / 100, "model": args.model,
                 "start": args.start, "batch": args.batch, "max_readings": args.max_readings,
                 "max_minutes": args.max_minutes}
-    check_settings(region, region_geometry(region) if candidates is None else candidates,
+    check_settings(region_geometry(region), candidates,
                    **settings)
     enable()
     print(f"adaptive: predicting over the plan's {len(region.points)} geometries; stop at a "

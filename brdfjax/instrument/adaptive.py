@@ -166,9 +166,11 @@ def digest(candidates: Measurements) -> str:
     return hashlib.sha256(np.ascontiguousarray(angles.T).tobytes()).hexdigest()[:16]
 
 
-def check_settings(region: Plan, candidates: Measurements, *, target_width: float,
-                   model: str, start: int, batch: int, max_readings, max_minutes) -> None:
-    """Refuse bad settings in one line naming the option, before any motor moves."""
+def check_settings(region: Measurements, candidates: Measurements | None, *,
+                   target_width: float, model: str, start: int, batch: int, max_readings,
+                   max_minutes) -> None:
+    """Refuse bad settings in one line naming the option, before any motor moves;
+    ``region``: the plan's geometry (`region_geometry`), ``candidates`` None for it."""
     from brdfjax.instrument.design import check_inputs
     from brdfjax.models import get
 
@@ -192,7 +194,7 @@ def check_settings(region: Plan, candidates: Measurements, *, target_width: floa
             raise ValueError(f"--start {start}: {model} has {size} parameters; a prediction "
                              f"needs more readings than that to start from (give --start "
                              f"{max(2 * size, START_READINGS)})")
-    check_inputs(candidates, start, region=region_geometry(region),
+    check_inputs(region if candidates is None else candidates, start, region=region,
                  names={"budget": "--start", "candidates": "the candidates",
                         "region": "the region (the plan's grid)"})
 
@@ -227,16 +229,17 @@ def measure_adaptive(port: str, region: Plan, out, *, candidates: Measurements |
     Returns:
         An `AdaptiveResult`.
     """
-    candidates = region_geometry(region) if candidates is None else candidates
+    points = region_geometry(region)
+    candidates = points if candidates is None else candidates
     check_reference(reference_reflectance)
-    check_settings(region, candidates, target_width=target_width, model=model, start=start,
+    check_settings(points, candidates, target_width=target_width, model=model, start=start,
                    batch=batch, max_readings=max_readings, max_minutes=max_minutes)
     settings = Settings(tuple(p.angles for p in region.points), digest(candidates), model,
                         seed, start, batch, region.average, region.integration_ms,
                         region.beam_margin)
     journal_path = Path(out).with_suffix(".journal.jsonl") if journal is None else journal
     record = Journal(journal_path, settings)
-    loop = _Loop(record, settings, candidates, region_geometry(region),
+    loop = _Loop(record, settings, candidates, points,
                  reference_reflectance, progress)
     try:
         resumed = len(record.readings)
