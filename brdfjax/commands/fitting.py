@@ -46,11 +46,12 @@ def register(subparsers) -> None:
                                           "paper's model by default) by minimising E of "
                                           "Eq. (6).")
     p.add_argument("file", help=FILE_HELP)
-    add_model_option(p, "the model to fit (auto: the lowest cv_error of brdfjax models; "
-                        "with --predict or --export and the learned discrepancy, the model "
-                        "brdfjax models recommends for prediction: of those whose cv_error "
-                        "corrected by their discrepancy is within a standard error of the "
-                        "lowest, the lowest cv_error alone)")
+    add_model_option(p, "the model to fit (auto: the model brdfjax models recommends: of "
+                        "those whose cv_error is within one standard error of the lowest, "
+                        "the fewest parameters; with --predict or --export and the learned "
+                        "discrepancy, the one it recommends for prediction: that model "
+                        "unless its corrected cv_error is more than one standard error above "
+                        "the lowest)")
     p.add_argument("--method", choices=("hybrid", "ga", "lm"), default="hybrid",
                    help="hybrid: genetic search then Levenberg-Marquardt (default)")
     p.add_argument("--seed", type=int, default=0, help=SEED_HELP)
@@ -374,12 +375,13 @@ def failure_reason() -> str:
 
 
 def choose_model(data, seed: int, predicting: bool = False) -> str:
-    """``--model auto``, said aloud: the model with the lowest cv_error
-    (`brdfjax.prediction.selection.Comparison.best`), or, ``predicting`` with the learned
-    discrepancy, what ``brdfjax models`` recommends for prediction
+    """``--model auto``, said aloud: the model ``brdfjax models`` recommends
+    (`brdfjax.prediction.selection.Comparison.best`: of the models whose cv_error is within
+    one standard error of the lowest, the fewest parameters), or, ``predicting`` with the
+    learned discrepancy, the one it recommends for prediction
     (`~brdfjax.prediction.selection.Comparison.predictor`: of the models whose cv_error
-    corrected by their discrepancy is within one standard error of the lowest, the lowest
-    cv_error alone). On the 14 RT-300S runs (BENCHMARKS.md, predictive-discrepancy) the
+    corrected by their discrepancy is within one standard error of the lowest, the first
+    that the rule on cv_error alone prefers). On the 14 RT-300S runs (BENCHMARKS.md, predictive-discrepancy) the
     latter's 95 % intervals are narrower than those of the model chosen by cv_error alone
     and corrected (median half-width 21 % against 27 %) and its 68 % intervals hold 69 %
     against 79 % (target 60-76 %), at the cost of a lower 95 % coverage (91.1 % against

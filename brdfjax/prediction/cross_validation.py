@@ -42,7 +42,9 @@ class Fold:
         label: the held-out incidence (``"30"``) or bin (``"20-35"``), degrees.
         low, high: the incidence range held out, degrees.
         interior: True unless it holds out the smallest or the largest incidences.
-        train_error, held_error: E of Eq. (6) on the training and held-out points.
+        train_error: E of Eq. (6) on the training points.
+        terms: each held-out point's term of E of Eq. (6) (`held_out_terms`), whose mean is
+            ``held_error``.
         params: the fold's fitted parameters.
         status: the fold fit's status.
         predicted: the fold model's BRDF at the held-out points (for calibration).
@@ -54,11 +56,16 @@ class Fold:
     high: float
     interior: bool
     train_error: float
-    held_error: float
+    terms: np.ndarray = field(repr=False)
     params: np.ndarray
     status: str
     predicted: np.ndarray = field(repr=False)
     index: np.ndarray = field(repr=False)
+
+    @property
+    def held_error(self) -> float:
+        """E of Eq. (6) on the held-out points."""
+        return float(np.mean(self.terms))
 
     @property
     def ratio(self) -> float:
@@ -188,7 +195,7 @@ def cross_validate(data: Measurements, model=None, *, seed: int = 0, bounds=None
         folds.append(Fold(
             label=label, low=low, high=high, interior=0 < k < len(groups) - 1,
             train_error=result.error,
-            held_error=held_out_error(values, data, mask),
+            terms=held_out_terms(values, data, mask),
             params=result.vector, status=result.status, predicted=values[mask],
             index=np.flatnonzero(mask)))
     return CrossValidation(model.name, folds, results[-1] if full_fit else None)
