@@ -11,6 +11,11 @@ import pytest
 from brdfjax.prediction import discrepancy
 from brdfjax.prediction.intervals import Calibration
 
+# The process's log likelihood compiled once a shape: called eagerly, each of the many calls
+# below ran tinygp's operations one by one (the finite differences took 40 s of a loaded
+# suite). The library calls it inside its compiled hyperparameter search, compiled too.
+log_likelihood_of = jax.jit(discrepancy._log_likelihood)
+
 
 def direct_process(x, r, fitted):
     """The same process written out in NumPy: covariance, log likelihood, conditioning.
@@ -61,7 +66,7 @@ def test_process_matches_a_direct_numpy_gaussian_process(smooth_sets):
     for (x, r), process in zip(sets, fitted):
         log_likelihood, direct = direct_process(x, r, process)
         # the padded likelihood, padding removed, is the likelihood of the real points
-        assert float(discrepancy._log_likelihood(process._u, process._x, process._r,
+        assert float(log_likelihood_of(process._u, process._x, process._r,
                                                  float(process.points))) == pytest.approx(
             log_likelihood, rel=1e-10, abs=1e-8)
         mean, sd = direct(x_test)
@@ -80,10 +85,10 @@ def test_likelihood_gradient_matches_finite_differences(smooth_sets):
     process = fitted[1]
     u = process._u + 0.2 * np.sin(1.0 + np.arange(process._u.size))  # away from the optimum
     args = (process._x, process._r, float(process.points))
-    gradient = np.asarray(jax.grad(discrepancy._log_likelihood)(u, *args))
+    gradient = np.asarray(jax.jit(jax.grad(discrepancy._log_likelihood))(u, *args))
     step = 1e-6
-    numeric = [(float(discrepancy._log_likelihood(u + step * e, *args))
-                - float(discrepancy._log_likelihood(u - step * e, *args))) / (2 * step)
+    numeric = [(float(log_likelihood_of(u + step * e, *args))
+                - float(log_likelihood_of(u - step * e, *args))) / (2 * step)
                for e in np.eye(u.size)]
     np.testing.assert_allclose(gradient, numeric, rtol=1e-5, atol=1e-5)
 
@@ -92,11 +97,11 @@ def test_hyperparameters_are_a_maximum_of_the_likelihood(smooth_sets):
     _, fitted = smooth_sets
     for process in fitted:
         args = (process._x, process._r, float(process.points))
-        best = float(discrepancy._log_likelihood(process._u, *args))
+        best = float(log_likelihood_of(process._u, *args))
         for e in np.eye(process._u.size):
             for sign in (-1, 1):
                 # 1e-5: a length scale driven to its bound's flat end still gains ~1e-6
-                assert float(discrepancy._log_likelihood(process._u + 0.05 * sign * e,
+                assert float(log_likelihood_of(process._u + 0.05 * sign * e,
                                                          *args)) <= best + 1e-5
 
 

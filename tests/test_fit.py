@@ -325,27 +325,50 @@ def transcribed_residuals(data):
     return residuals
 
 
-def test_noisy_cement_reaches_the_best_fit_of_a_long_search():
-    """Noise seed 1003: the basin of the best fit lies at a's lower bound, reached before the
-    Fresnel-free start only by a long search (3 fits of 2048 members x 200 generations and
-    64 starts). START, that search's best parameters, is a regression pin of where the basin
-    is; the E there is not: SciPy's least_squares on the transcription, from the same start
-    in the same box, gives it independently (5.8967110e-4). The default fit reaches it from
-    at least 28 of the seeds 0-29 (29 since the search's scoring changed, seed 3 not; 29
-    before, seed 19 not: a search's seed picks its path, so one seed pins nothing)."""
+NOISY_CEMENT_START = np.array([2.3806e-3, 3.2013, 0.0100000001, 0.20696, 0.067036])
+
+
+def noisy_cement():
+    """The cement with noise seed 1003, and E at its best fit by SciPy's least_squares on the
+    transcription from `NOISY_CEMENT_START`, in the same box (5.8967110e-4)."""
     from scipy.optimize import least_squares
 
     data = paper_sample("cement", noise=0.025, seed=1003).at_incidences([10, 30, 45, 60])
-    start = np.array([2.3806e-3, 3.2013, 0.0100000001, 0.20696, 0.067036])
     bounds = default_bounds()
     low, high = np.asarray(bounds.lower), np.asarray(bounds.upper)
-    reference = least_squares(transcribed_residuals(data), start, bounds=(low, high),
-                              x_scale=np.abs(start) + 1e-3, ftol=1e-15, xtol=1e-15,
-                              gtol=1e-15)
+    reference = least_squares(transcribed_residuals(data), NOISY_CEMENT_START,
+                              bounds=(low, high), x_scale=np.abs(NOISY_CEMENT_START) + 1e-3,
+                              ftol=1e-15, xtol=1e-15, gtol=1e-15)
+    return data, reference
+
+
+def test_noisy_cement_reaches_the_best_fit_of_a_long_search():
+    """Noise seed 1003: the basin of the best fit lies at a's lower bound, reached before the
+    Fresnel-free start only by a long search (3 fits of 2048 members x 200 generations and
+    64 starts). NOISY_CEMENT_START, that search's best parameters, is a regression pin of
+    where the basin is; the E there is not: SciPy's least_squares on the transcription, from
+    the same start in the same box, gives it independently. The default fit reaches it from
+    the seeds 0, 1 and 2; one may miss (a search's seed picks its path, so one seed pins
+    nothing). How often, over the seeds 0-29, is the slow test below (28 of 30 at least)."""
+    data, reference = noisy_cement()
     e_scipy = 2 * reference.cost
-    best = fit(data, "lm", start=start)
+    best = fit(data, "lm", start=NOISY_CEMENT_START)
     assert best.error == pytest.approx(e_scipy, rel=1e-6)
     np.testing.assert_allclose(best.vector, reference.x, rtol=1e-5)
+    reached = [fit(data, seed=seed).error <= e_scipy * (1 + 1e-6) for seed in range(3)]
+    assert sum(reached) >= 2, reached
+
+
+# Runs with `pytest -m slow tests/test_fit.py` (pyproject's addopts leave it out of the
+# default suite): 30 fits, about 1 min alone on the 2-core machine, 2 min loaded.
+@pytest.mark.slow
+def test_noisy_cement_is_reached_from_nearly_every_seed():
+    """The default fit reaches the best fit of the noisy cement from at least 28 of the
+    seeds 0-29 (29 since the search's scoring changed, seed 3 not; 29 before, seed 19 not).
+    benchmarks/bench_fit.py's section noisy checks the same over 20 noise seeds of each
+    paper sample (cement's 1000-1019, 1003 among them)."""
+    data, reference = noisy_cement()
+    e_scipy = 2 * reference.cost
     reached = [fit(data, seed=seed).error <= e_scipy * (1 + 1e-6) for seed in range(30)]
     assert sum(reached) >= 28, reached
 
