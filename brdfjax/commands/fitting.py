@@ -381,13 +381,13 @@ def choose_model(data, seed: int, predicting: bool = False) -> str:
     learned discrepancy, the one it recommends for prediction
     (`~brdfjax.prediction.selection.Comparison.predictor`: of the models whose cv_error
     corrected by their discrepancy is within one standard error of the lowest, the first
-    that the rule on cv_error alone prefers). On the 14 RT-300S runs (BENCHMARKS.md, predictive-discrepancy) the
-    latter's 95 % intervals are narrower than those of the model chosen by cv_error alone
-    and corrected (median half-width 21 % against 27 %) and its 68 % intervals hold 69 %
-    against 79 % (target 60-76 %), at the cost of a lower 95 % coverage (91.1 % against
-    96.3 %) and a slightly higher median error (4.8 % against 4.5 %). The model so chosen
-    may fit poorly on its own (lambert on NiTE on steel A) and predict well only with its
-    correction."""
+    that the rule on cv_error alone prefers). Choosing for prediction by the corrected
+    cv_error gives narrower intervals than correcting the model chosen by cv_error alone
+    (BENCHMARKS.md, predictive-discrepancy, under the rule before 2026-12-07: median
+    half-width 21 % against 27 % on the 14 RT-300S runs, 68 % coverage 69 against 79 %,
+    at a 95 % coverage of 91.1 against 96.3 % and a median error of 4.8 against 4.5 %).
+    The model so chosen may fit poorly on its own (lambert on NiTE on steel A) and predict
+    well only with its correction."""
     from brdfjax.prediction.selection import compare_models
 
     comparison = compare_models(data, seed=seed, discrepancy="gp" if predicting else "none")
