@@ -356,9 +356,14 @@ def test_measure_visits_the_listed_geometries_in_order(simulator, tmp_path):
 
 # ---------------------------------------------------------------- measure --adaptive
 
-REGION = ["--incidence", "10,30,50,70", "--theta-r-step", "10", "--average", "2",
+REGION = ["--incidence", "10,30,50,70", "--theta-r-step", "5", "--average", "2",
           "--integration-ms", "1"]
-ADAPTIVE = ["--adaptive", "--target-width", "8", "--start", "12", "--batch", "8", "--quiet"]
+# A start large enough for the first round to calibrate (its two interior incidences hold
+# the 19 held-out scores a finite 95 % factor needs), and batches of 12, so that two
+# checked batches calibrate the third round: the fewest rounds that can stop on the width.
+START, BATCH = 40, 12
+ADAPTIVE = ["--adaptive", "--target-width", "8", "--start", str(START), "--batch", str(BATCH),
+            "--quiet"]
 
 
 def journal_records(path, kind):
@@ -376,20 +381,34 @@ def adaptive_run(simulator, tmp_path_factory):
         ["measure", "--port", port, "--out", str(out), *REGION]))
 
 
-@pytest.mark.timeout(300)
-def test_adaptive_measurement_stops_on_the_width_with_honest_intervals(adaptive_run):
-    from brdfjax import brdf, fit, predict
+@pytest.mark.timeout(500)
+def test_adaptive_measurement_stops_honestly_and_resumes_with_the_same_decisions(
+        simulator, adaptive_run, tmp_path):
+    """One test of the clean run (`adaptive_run`): xdist would make the module's fixture
+    again on every worker that runs a test using it."""
+    stops_on_the_width_with_honest_intervals(*adaptive_run)
+    interrupted_resumes_with_the_same_decisions(simulator, *adaptive_run[:2], tmp_path)
 
-    out, journal, region = adaptive_run
+
+def stops_on_the_width_with_honest_intervals(out, journal, region):
+    from brdfjax import brdf, predict
+    from brdfjax.instrument.adaptive import BATCH_SCORES, calibrated, fitted
+
     data = load(out)
     rounds = journal_records(journal, "round")
-    # It stopped on the target, once the newest batch also fell inside the last intervals...
+    # It stopped on the target, once the newest batch also fell inside the last intervals
+    # and the batches' own scores calibrated them...
     assert rounds[-1]["half_width"] <= 0.08 and rounds[-1]["checked"] >= 0.9
+    assert rounds[-1]["by_batches"]
     assert all(r["half_width"] is None or r["half_width"] > 0.08 or r["checked"] is None
-               or r["checked"] < 0.9 for r in rounds[:-1])
-    assert rounds[0]["checked"] is None
+               or r["checked"] < 0.9 or not r["by_batches"] for r in rounds[:-1])
+    assert rounds[0]["checked"] is None and rounds[0]["scores"] is None
+    scored = [r["scores"] for r in rounds if r["scores"]]
+    assert all(len(s["sigma"]) == len(s["relative"]) == BATCH for s in scored)  # each reading
+    counts = np.cumsum([0 if r["scores"] is None else BATCH for r in rounds])
+    assert [r["by_batches"] for r in rounds] == list(counts >= BATCH_SCORES)
     assert len(data) == rounds[-1]["readings"] < len(region.points)  # ...before the grid
-    assert [r["readings"] for r in rounds] == list(range(12, len(data) + 1, 8))
+    assert [r["readings"] for r in rounds] == list(range(START, len(data) + 1, BATCH))
     assert out.with_suffix(".adaptive.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     # Every reading was read where a batch said, each geometry once, and the geometries
     # are the region's.
@@ -404,7 +423,10 @@ def test_adaptive_measurement_stops_on_the_width_with_honest_intervals(adaptive_
                      {tuple(k) for k in data.geometries()}])
     ti, tr, pr = np.radians(left.T)
     truth = np.asarray(brdf(TRUTH, ti, tr, pr))
-    prediction = predict(fit(data, model="ggx", seed=0), Measurements(ti, tr, pr, truth))
+    _, result = fitted(data, "ggx", 0)  # the last round's intervals, as the stop measured
+    calibration, by_batches = calibrated(result, 0, scored)
+    assert by_batches
+    prediction = predict(result, Measurements(ti, tr, pr, truth), calibration)
     print(f"{len(data)} of {len(region.points)} read; coverage of the rest "
           f"{prediction.coverage():.3f}, median half-width "
           f"{np.median(prediction.half_width()):.4f}")
@@ -412,13 +434,10 @@ def test_adaptive_measurement_stops_on_the_width_with_honest_intervals(adaptive_
     assert np.median(prediction.half_width()) <= 0.08
 
 
-@pytest.mark.timeout(400)
-def test_adaptive_measurement_interrupted_resumes_with_the_same_decisions(
-        simulator, adaptive_run, tmp_path):
+def interrupted_resumes_with_the_same_decisions(simulator, clean_out, clean_journal, tmp_path):
     import signal
     import time
 
-    clean_out, clean_journal, _ = adaptive_run
     out = tmp_path / "khaki.csv"
     journal = out.with_suffix(".journal.jsonl")
     _, port = simulator()
@@ -427,11 +446,11 @@ def test_adaptive_measurement_interrupted_resumes_with_the_same_decisions(
     process = interruptible(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True)
     deadline = time.monotonic() + 200
-    # Interrupted once the start is read: two rounds at least are left (the first has no
-    # batch to check its intervals), so it is fitting or reading, never done (a fixed wait
-    # after it let a warm run finish first).
+    # Interrupted once the start is read: three rounds at least are left (the first has no
+    # batch to check its intervals, the second too few scores), so it is fitting or
+    # reading, never done (a fixed wait after it let a warm run finish first).
     while time.monotonic() < deadline and process.poll() is None:
-        if journal.exists() and len(journal_records(journal, "reading")) >= 24:
+        if journal.exists() and len(journal_records(journal, "reading")) >= 2 * START:
             break
         time.sleep(0.02)
     process.send_signal(signal.SIGINT)
@@ -441,7 +460,7 @@ def test_adaptive_measurement_interrupted_resumes_with_the_same_decisions(
     assert time.monotonic() - tic < 2.0
     assert not out.exists()
     taken = len(journal_records(journal, "reading"))
-    assert taken >= 24
+    assert taken >= 2 * START
 
     _, port = simulator()
     assert main(["measure", "--port", port, "--out", str(out), *REGION, *ADAPTIVE]) == 0
@@ -453,20 +472,34 @@ def test_adaptive_measurement_interrupted_resumes_with_the_same_decisions(
     assert strip == [{k: v for k, v in r.items() if k != "time"}
                      for r in journal_records(clean_journal, "batch")]
     assert same_readings(load(out), load(clean_out))
+    # ...and the same rounds: widths, checks and the batches' scores (minutes are wall time)
+    for resumed, clean in zip(*(journal_records(j, "round") for j in (journal, clean_journal)),
+                              strict=True):
+        for key in ("readings", "model", "by_batches"):
+            assert resumed[key] == clean[key], key
+        numbers = [(key, resumed[key], clean[key]) for key in ("half_width", "checked")]
+        numbers += [(form, (resumed["scores"] or {}).get(form), (clean["scores"] or {}).get(form))
+                    for form in ("sigma", "relative")]
+        for key, found, expected in numbers:
+            assert (found is None) == (expected is None), key
+            if expected is not None:
+                np.testing.assert_allclose(found, expected, rtol=1e-6, err_msg=key)
 
 
 def test_adaptive_stop_rule():
     from brdfjax.instrument.adaptive import Round, _stop, levelled
 
-    def rounds(widths, checked=1.0, minutes=0.0):
-        return [Round(20 + 10 * k, minutes, "ggx", w, None if k == 0 else checked)
-                for k, w in enumerate(widths)]
+    def rounds(widths, checked=1.0, minutes=0.0, by_batches=True):
+        return [Round(20 + 10 * k, minutes, "ggx", w, None if k == 0 else checked,
+                      by_batches=by_batches) for k, w in enumerate(widths)]
 
     def stop(history, readings=50, candidates=100, max_readings=None, max_minutes=None):
         return _stop(history, readings, candidates, 0.10, max_readings, max_minutes)
 
     assert stop(rounds([math.inf, 0.08])) == "target"
     assert stop(rounds([math.inf, 0.08], checked=0.8)) is None  # the newest batch missed
+    # calibrated by the held-out incidences alone: not trusted to stop on
+    assert stop(rounds([math.inf, 0.08], by_batches=False)) is None
     assert stop(rounds([0.08])) is None  # no batch has checked the intervals yet
     # Five calibrated rounds, none 5 % below the narrowest before them: levelled off.
     flat = [math.inf, 0.31, 0.33, 0.30, 0.35, 0.32, 0.31]
@@ -477,6 +510,36 @@ def test_adaptive_stop_rule():
     assert stop(rounds([math.inf], minutes=12.0), max_minutes=10) == "max-minutes"
     assert stop(rounds([math.inf]), readings=100) == "candidates"
     assert stop(rounds([math.inf]), max_readings=60, max_minutes=13) is None
+
+
+def test_adaptive_batches_calibrate_once_they_hold_enough_scores():
+    from types import SimpleNamespace
+
+    from brdfjax.instrument.adaptive import BATCH_SCORES, calibrated
+    from brdfjax.prediction.intervals import Calibration
+
+    held_out = Calibration(interior=np.linspace(0.1, 3.0, 30), every=np.linspace(0.1, 4.0, 60),
+                           floor=0.01, low=10.0, high=70.0, score="sigma")
+    result = SimpleNamespace(calibrations={("gp", 0): held_out})
+    narrow = list(np.linspace(0.05, 0.5, 10))
+    wide = list(5 * np.asarray(narrow))
+
+    def factor(*scored):
+        calibration, by_batches = calibrated(result, 0, list(scored))
+        return calibration.factor(0.95, False), calibration.factor(0.95, True), by_batches
+
+    assert BATCH_SCORES == 19  # the fewest n with ceil((n + 1) 0.95) <= n
+    # one batch of 10: the held-out incidences still calibrate
+    assert factor({"sigma": narrow, "relative": wide}) == (
+        held_out.factor(0.95, False), held_out.factor(0.95, True), False)
+    # two: their scores in the calibration's form alone set the factor inside the measured
+    # incidences, narrower than the held-out one here; extrapolation keeps the held-out one
+    inside, outside, by_batches = factor(*[{"sigma": narrow, "relative": wide}] * 2)
+    assert by_batches and inside == 0.5 < held_out.factor(0.95, False)
+    assert outside == held_out.factor(0.95, True)
+    # and wider where the batches missed by more
+    assert factor({"sigma": narrow, "relative": narrow}, {"sigma": wide, "relative": narrow}
+                  )[0] == 2.5
 
 
 @pytest.mark.timeout(120)
