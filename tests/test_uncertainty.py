@@ -10,6 +10,7 @@ import subprocess
 import sys
 import warnings
 
+import jax
 import numpy as np
 import pytest
 from conftest import DATA, REPO
@@ -126,11 +127,13 @@ def test_laplace_matches_finite_differences(training, white_laplace):
     mode = white_laplace.median
     t0 = prior_coordinates(mode)
     cos_r = np.cos(training.theta_r)
+    # compiled once for the 111 evaluations below (eagerly, 0.3 s each on a loaded machine)
+    model_at = jax.jit(lambda params: projected_brdf(params, training.theta_i,
+                                                     training.theta_r, training.phi_r))
 
     def weighted_residuals(t):
         params = np.where(LOG_SCALE, 10.0**t, np.sinh(t))
-        model = np.asarray(projected_brdf(params, training.theta_i, training.theta_r,
-                                          training.phi_r))
+        model = np.asarray(model_at(params))
         return (model - training.brdf * cos_r) / (training.sigma * cos_r)
 
     laplace_std = std_in_prior_coordinates(white_laplace)
