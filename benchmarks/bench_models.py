@@ -378,7 +378,7 @@ def bench_ranking():
         single = min((v, k) for k, v in scores.items() if "+" not in k)
         summed = min((v, k) for k, v in scores.items() if "+" in k)
         ranking = ", ".join(f"{name} {100 * scores[name]:.3g}" for name in comparison.ranking)
-        rows.append(f"| {label} | {comparison.best.name} | {summed[1]} {100 * summed[0]:.3g} | "
+        rows.append(f"| {label} | {comparison.ranking[0]} | {summed[1]} {100 * summed[0]:.3g} | "
                     f"{single[1]} {100 * single[0]:.3g} | {summed[0] / single[0]:.2f} | "
                     f"{ranking} |")
         print(rows[-1], flush=True)

@@ -58,8 +58,8 @@ RUNS = RUNS_3D + sorted((real_data("uaz-loft-rt300s") / "raw_legacy_1deg").glob(
 
 def fit_without(data, incidence, model):
     """``(model name, fit)`` of ``data`` with ``incidence`` held out. ``auto``: the model
-    `brdfjax.prediction.selection.compare_models` ranks first on the training incidences alone (as
-    ``brdfjax fit --model auto`` would choose)."""
+    `brdfjax.prediction.selection.compare_models` recommends on the training incidences alone
+    (`Comparison.best`, as ``brdfjax fit --model auto`` would choose)."""
     import brdfjax
 
     if model == "auto":
@@ -69,9 +69,10 @@ def fit_without(data, incidence, model):
 
 def choices(data, incidence, discrepancy: str) -> dict:
     """``--model auto``'s choices with ``incidence`` held out, as ``brdfjax fit`` makes them:
-    ``{"none": lowest cv_error}`` and, with ``discrepancy="gp"``, ``"gp"``: the model to
-    predict with (``Comparison.predictor``: the one-standard-error rule on the cv_error of
-    each model times its learned discrepancy), which ``fit --model auto --predict`` uses.
+    ``{"none": the model recommended}`` (``Comparison.best``: the one-standard-error rule on
+    cv_error) and, with ``discrepancy="gp"``, ``"gp"``: the model to predict with
+    (``Comparison.predictor``: that model unless its corrected cv_error is more than one
+    standard error above the lowest), which ``fit --model auto --predict`` uses.
     One comparison gives both."""
     from brdfjax.prediction.selection import compare_models
 
@@ -360,10 +361,11 @@ def bench_discrepancy(models, runs):
                                     for k in ("none", "gp"))
                        + " % (none / gp); the target reads per run in the table above."), ""]
         if model == "auto":
-            ways = {"none": "by cv_error, for the model alone",
-                    "gp": ("by the one-standard-error rule on the cv_error of the model "
-                           "times its discrepancy (`Comparison.predictor`), for the corrected "
-                           "prediction")}
+            ways = {"none": ("by the one-standard-error rule on cv_error (`Comparison.best`), "
+                             "for the model alone"),
+                    "gp": ("as `Comparison.predictor` (that model unless its cv_error times "
+                           "its discrepancy is more than one standard error above the "
+                           "lowest), for the corrected prediction")}
             for kind, what in ways.items():
                 counts = ", ".join(f"{n} {models_used[kind].count(n)}"
                                    for n in sorted(set(models_used[kind])))
