@@ -14,10 +14,11 @@ within one standard error of the lowest, the one with the fewest parameters
 (`Comparison.best`, the compact analytic model a ray tracer or a report can use on its
 own). Where the book takes the standard error of the lowest model's cv_error, the one here
 is that of each model's difference from it, the two models' held-out points paired
-(`paired_standard_error`): two or three folds are too few for a spread of their own. With the learned discrepancy scored, the
-same model predicts unmeasured geometry unless its corrected cv_error is measurably above
-the lowest; then the first model whose corrected cv_error is within one standard error of
-the lowest, in the order the rule prefers them (`Comparison.predictor`).
+(`paired_standard_error`): two or three folds are too few for a spread of their own. With
+the learned discrepancy scored, the same model predicts unmeasured geometry unless its
+corrected cv_error is measurably above the lowest; then the first model whose corrected
+cv_error is within one standard error of the lowest, in the order the rule prefers them
+(`Comparison.predictor`).
 
 AIC and BIC use a Gaussian likelihood of the projected BRDF with one variance, estimated
 by maximum likelihood from the fit's residuals (``sigma^2 = RSS / n``, counted as one more
@@ -118,7 +119,8 @@ class Comparison:
         equal counts, the lower cv_error); then the others, as `ranking` has them."""
         near = within_one_standard_error(self.scores, self.lowest, lambda s: s.cv_error,
                                          lambda s: s.terms)
-        close = sorted((n for n in self.ranking if n in near), key=lambda n: size(self.score(n)))
+        close = sorted((n for n in self.ranking if n in near),
+                       key=lambda n: size(self.score(n)))
         return close + [n for n in self.ranking if n not in near]
 
     @property
@@ -344,8 +346,9 @@ def paired_standard_error(a: tuple, b: tuple) -> float:
     about sqrt(n) runs of consecutive points, and the spread of the runs' means gives the
     standard error of the fold's mean (batch means); the folds' means are averaged. With
     two folds of 30 points that is 8 degrees of freedom: the standard error is itself
-    uncertain by a quarter, and a gap within that of it is a close call either way. Infinite where a fold holds one point or
-    none: there the difference cannot be measured."""
+    uncertain by a quarter, and a gap within that of it is a close call either way.
+    Infinite where a fold holds one point or none: there the difference cannot be
+    measured."""
     def variance(difference: np.ndarray) -> float:  # of the fold's mean, by batch means
         if difference.size < 2:
             return np.inf
