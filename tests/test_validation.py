@@ -580,8 +580,8 @@ def test_model_auto_predicts_with_the_model_to_predict_with(monkeypatch, capsys)
     cv_error. On NiTE on steel A, of lambert and ggx, ggx has the lower cv_error (0.73 %
     against 51 %) but lambert corrected by its process the lower corrected one, by more
     than the standard error of the difference (0.118 % against 0.253 %, 0.135 % apart,
-    standard error 0.10 %, batch means): the two rules choose differently. (Two candidates instead of ten, to keep the test short; the comparison is
-    real.)"""
+    standard error 0.10 %, batch means): the two rules choose differently. (Two candidates
+    instead of ten, to keep the test short; the comparison is real.)"""
     from brdfjax.commands.fitting import choose_model
     from brdfjax.prediction import selection
 
