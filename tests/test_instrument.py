@@ -383,11 +383,13 @@ def adaptive_run(simulator, tmp_path_factory):
 
 @pytest.mark.timeout(500)
 def test_adaptive_measurement_stops_honestly_and_resumes_with_the_same_decisions(
-        simulator, adaptive_run, tmp_path):
+        simulator, adaptive_run, tmp_path, capsys):
     """One test of the clean run (`adaptive_run`): xdist would make the module's fixture
     again on every worker that runs a test using it."""
     stops_on_the_width_with_honest_intervals(*adaptive_run)
     interrupted_resumes_with_the_same_decisions(simulator, *adaptive_run[:2], tmp_path)
+    resumed_with_a_lower_cap_reports_the_round_it_stopped_at(simulator, adaptive_run[1],
+                                                            tmp_path, capsys)
 
 
 def stops_on_the_width_with_honest_intervals(out, journal, region):
@@ -484,6 +486,28 @@ def interrupted_resumes_with_the_same_decisions(simulator, clean_out, clean_jour
             assert (found is None) == (expected is None), key
             if expected is not None:
                 np.testing.assert_allclose(found, expected, rtol=1e-6, err_msg=key)
+
+
+def resumed_with_a_lower_cap_reports_the_round_it_stopped_at(simulator, clean_journal,
+                                                            tmp_path, capsys):
+    """The finished run resumed with --max-readings at its second round stops there, reads
+    nothing, and reports that round (it reported the journal's last: its width, for
+    readings it did not keep)."""
+    import shutil
+
+    out = tmp_path / "capped.csv"
+    shutil.copy(clean_journal, out.with_suffix(".journal.jsonl"))
+    second = journal_records(clean_journal, "round")[1]
+    _, port = simulator()
+    capsys.readouterr()
+    assert main(["measure", "--port", port, "--out", str(out), *REGION, *ADAPTIVE,
+                 "--max-readings", str(START + BATCH)]) == 0
+    said = capsys.readouterr().out
+    assert len(load(out)) == START + BATCH == second["readings"]
+    assert "adaptive: stopped after 2 round(s)" in said
+    width = second["half_width"]
+    assert ("median 95 % half-width over the region "
+            + ("none yet" if width is None else f"{100 * width:.3g} %")) in said
 
 
 def test_adaptive_stop_rule():

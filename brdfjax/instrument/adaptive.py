@@ -285,7 +285,7 @@ def measure_adaptive(port: str, region: Plan, out, *, candidates: Measurements |
         record.close()
     from brdfjax.data.formats import save
 
-    result = AdaptiveResult(data, loop.rounds, stopped, target_width,
+    result = AdaptiveResult(data, loop.rounds[:loop.last + 1], stopped, target_width,
                             len(record.readings) - resumed, resumed, resends,
                             Path(journal_path), *loop.final())
     save(data, out)
@@ -309,6 +309,7 @@ class _Loop:
                              r["checked"], r.get("scores"), r.get("by_batches", False))
                        for r in record.kept("round")]
         self.fits = {}  # round -> its fit, where made in this run
+        self.last = 0  # the round the run stopped at (`run`)
         self.plan = None
 
     def run(self, session, target_width, max_readings, max_minutes) -> str:
@@ -332,7 +333,7 @@ class _Loop:
                 bar.set_postfix_str(f"{done.minutes:.1f} min, half-width "
                                     f"{_percent(done.half_width)} (target "
                                     f"{_percent(target_width)}), {done.model}")
-                readings = len(self.plan.points)
+                readings, self.last = len(self.plan.points), k
                 stopped = _stop(self.rounds[:k + 1], readings, len(self.candidates),
                                 target_width, max_readings, max_minutes)
                 if stopped:
@@ -404,13 +405,13 @@ class _Loop:
         self.rounds.append(done)
 
     def final(self) -> tuple:
-        """The last round's fit and calibration (None, None where it made no calibrated
-        prediction)."""
-        last = len(self.rounds) - 1
-        if not math.isfinite(self.rounds[last].half_width):
+        """The fit and calibration of the round the run stopped at (`last`: a resumed run
+        with a looser stop rule stops before the journal's last round); None, None where it
+        made no calibrated prediction."""
+        if not math.isfinite(self.rounds[self.last].half_width):
             return None, None
-        result = self._fit(last)[1]
-        return result, calibrated(result, self.settings.seed, self._scored(last))[0]
+        result = self._fit(self.last)[1]
+        return result, calibrated(result, self.settings.seed, self._scored(self.last))[0]
 
 
 def fitted(data: Measurements, model: str, seed: int) -> tuple:
