@@ -117,8 +117,7 @@ class Comparison:
         cv_error: the models whose cv_error exceeds the `lowest` by at most the standard
         error of the difference (`within_one_standard_error`), fewest parameters first (of
         equal counts, the lower cv_error); then the others, as `ranking` has them."""
-        near = within_one_standard_error(self.scores, self.lowest, lambda s: s.cv_error,
-                                         lambda s: s.terms)
+        near = self.within_one_standard_error()
         close = sorted((n for n in self.ranking if n in near),
                        key=lambda n: size(self.score(n)))
         return close + [n for n in self.ranking if n not in near]
@@ -145,10 +144,10 @@ class Comparison:
     def predictor(self) -> ModelScore:
         """The model to predict with, by the one-standard-error rule. The candidates are
         the models whose corrected cv_error exceeds the `lowest_corrected` by at most the
-        standard error of the difference (`within_one_standard_error`); of them, the one
-        that comes first in `preference`, the rule on cv_error alone: `best` wherever its
-        corrected cv_error is within the noise of the lowest. Where no discrepancy was
-        scored, `best`.
+        standard error of the difference (`within_one_standard_error`, ``corrected``); of
+        them, the one that comes first in `preference`, the rule on cv_error alone: `best`
+        wherever its corrected cv_error is within the noise of the lowest. Where no
+        discrepancy was scored, `best`.
 
         The corrected cv_errors of the models lie close together (each process takes up
         most of its model's shape error), and the lowest rests on the few dozen points of
@@ -161,8 +160,7 @@ class Comparison:
         lowest = self.lowest_corrected
         if lowest is None:
             return self.best
-        near = within_one_standard_error(self.scores, lowest, lambda s: s.corrected_cv_error,
-                                         lambda s: s.corrected_terms, unmeasured=True)
+        near = self.within_one_standard_error(corrected=True, unmeasured=True)
         return self.score(next(name for name in self.preference if name in near))
 
     def score(self, name: str) -> ModelScore:
@@ -247,6 +245,28 @@ class Comparison:
                 "predictor": (predictor.name if np.isfinite(predictor.corrected_cv_error)
                               else None),
                 "lowest_with_discrepancy": None if lowest is None else lowest.name}
+
+    def within_one_standard_error(self, corrected: bool = False,
+                                  unmeasured: bool = False) -> set:
+        """The names of the models whose cv_error (with ``corrected``, corrected cv_error;
+        finite) exceeds the `lowest`'s (`lowest_corrected`'s) by at most the
+        `standard_error` of the difference. Where that cannot be measured (a fold of one
+        point), every model counts as within it with ``unmeasured``, none but those as low
+        as the lowest without."""
+        lowest = self.lowest_corrected if corrected else self.lowest
+
+        def error(score: ModelScore) -> float:
+            return score.corrected_cv_error if corrected else score.cv_error
+
+        def close(score: ModelScore) -> bool:
+            if not np.isfinite(error(score)):
+                return False
+            se = self.standard_error(score, corrected)
+            if not np.isfinite(se):
+                return unmeasured or error(score) <= error(lowest)
+            return bool(error(score) - error(lowest) <= se)
+
+        return {s.name for s in self.scores if close(s)}
 
     def standard_error(self, score: ModelScore, corrected: bool = False) -> float:
         """The standard error of ``score``'s cv_error minus the `lowest`'s, or with
@@ -357,26 +377,6 @@ def paired_standard_error(a: tuple, b: tuple) -> float:
 
     variances = [variance(x - y) for x, y in zip(a, b, strict=True)]
     return float(np.sqrt(np.sum(variances)) / len(variances)) if variances else np.inf
-
-
-def within_one_standard_error(scores: list, lowest: ModelScore, error, terms,
-                              unmeasured: bool = False) -> set:
-    """The names of the ``scores`` whose error (``error(score)``, finite) exceeds
-    ``lowest``'s by at most the standard error of the difference (`paired_standard_error`
-    of ``terms(score)`` and ``terms(lowest)``). Where that cannot be measured (a fold of
-    one point), every model counts as within it with ``unmeasured``, none but those as low
-    as ``lowest`` without."""
-    def close(score: ModelScore) -> bool:
-        if score is lowest:
-            return True
-        if not np.isfinite(error(score)):
-            return False
-        se = paired_standard_error(terms(score), terms(lowest))
-        if not np.isfinite(se):
-            return unmeasured or error(score) <= error(lowest)
-        return bool(error(score) - error(lowest) <= se)
-
-    return {s.name for s in scores if close(s)}
 
 
 def size(score: ModelScore) -> int:
