@@ -107,9 +107,9 @@ def test_hyperparameters_are_a_maximum_of_the_likelihood(smooth_sets):
 
 def test_learned_hyperparameters_stay_in_their_box_and_are_reported_by_name(smooth_sets):
     sets, fitted = smooth_sets
-    names = ["theta_h", "theta_d", "phi_d", "theta_i"]
+    names = ["theta_h_cos_phi_h", "theta_h_sin_phi_h", "theta_d", "theta_i"]
     if sets[0][0].shape[1] == 3:
-        names.remove("phi_d")
+        names[:2] = ["theta_h"]
     low, high = discrepancy.HYPER_BOX["incidence"]
     for process in fitted:
         record = process.to_dict()
@@ -157,19 +157,33 @@ def test_features_are_the_half_and_difference_angles_and_the_incidence():
     np.testing.assert_allclose(np.degrees(x), [10.0, 20.0, 10.0], atol=1e-9)
 
 
-def test_angle_features_keep_reciprocity_out_of_the_plane():
-    """The angles are reciprocal and mirror-symmetric; the incidence (last) is the
-    incidence, by design (the module docstring)."""
+def test_out_of_plane_features_are_the_signed_half_vector():
+    """Out of the plane the half vector is a signed point of the disc: its length is
+    theta_h, a mirror image across the plane of incidence flips its second coordinate (two
+    inputs, not one), theta_d and theta_i are those of the in-plane features, and an in-plane
+    reading has no second coordinate, its first signed by the side of the specular
+    direction it lies on."""
     rng = np.random.default_rng(5)
     ti, tr = rng.uniform(0, 1.5, (2, 200))
     pr = rng.uniform(0, 2 * np.pi, 200)
     x = discrepancy.features(ti, tr, pr, azimuth=True)
-    swapped = discrepancy.features(tr, ti, pr, azimuth=True)  # isotropic: phi_i - phi_r only
+    plain = discrepancy.features(ti, tr, pr, azimuth=False)
+    np.testing.assert_allclose(np.hypot(x[:, 0], x[:, 1]), plain[:, 0], atol=1e-12)
+    np.testing.assert_allclose(x[:, 2:], plain[:, 1:], atol=0)
     mirrored = discrepancy.features(ti, tr, -pr, azimuth=True)
-    np.testing.assert_allclose(x[:, :3], swapped[:, :3], atol=1e-9)
-    np.testing.assert_allclose(x, mirrored, atol=1e-9)
-    np.testing.assert_allclose(swapped[:, 3], tr, atol=0)
-    assert np.all((x[:, 2] >= 0) & (x[:, 2] <= np.pi / 2))
+    np.testing.assert_allclose(mirrored, x * [1, -1, 1, 1], atol=1e-12)
+    # the half vector by hand: 10 deg incidence, 30 deg out at phi_r = 90 deg
+    h = np.array([np.sin(np.radians(10)), np.sin(np.radians(30)),
+                  np.cos(np.radians(10)) + np.cos(np.radians(30))])
+    theta_h, phi_h = np.arccos(h[2] / np.linalg.norm(h)), np.arctan2(h[1], h[0])
+    one = discrepancy.features(np.radians(10), np.radians(30), np.pi / 2, azimuth=True)
+    np.testing.assert_allclose(one[:2], theta_h * np.array([np.cos(phi_h), np.sin(phi_h)]),
+                               atol=1e-12)
+    # in the plane: specular side (phi_r = 180 deg) past the specular angle, and before it
+    past, before = discrepancy.features(np.radians(10), np.radians([30, 5]), np.pi, azimuth=True)
+    assert past[0] < 0 < before[0]
+    np.testing.assert_allclose([past[1], before[1]], 0.0, atol=1e-15)
+    np.testing.assert_allclose(np.degrees([past[0], before[0]]), [-10.0, 2.5], atol=1e-9)
 
 
 def test_subsample_keeps_every_incidence_its_share():

@@ -28,18 +28,16 @@ along each incidence's Z-order curve, every incidence keeping its share).
 
 **Without measurements**, the design is space-filling: greedy maximin (farthest-point
 sampling) over the candidates in the process's feature space
-(`~brdfjax.prediction.discrepancy.features`: half and difference angles, the folded
-difference azimuth where the candidates leave the plane of incidence, and the incidence; in
-radians). The first point is a candidate drawn with ``seed``; each next one is the
-candidate farthest from every point chosen. It was preferred to a scrambled Sobol set
-snapped to the nearest unused candidate because candidates are a finite set, often a
-regular grid: two Sobol points near one node snap to neighbouring nodes, so the snapped
-design's minimum distance can fall to the grid's step, no better than a random subset's,
-whereas greedy maximin makes that minimum as large as it can (at least half the best
-possible). It also spreads in the space the process learns in, where geometries an
-isotropic BRDF cannot tell apart (every azimuth at normal incidence) are one point. Its
-known weakness: it takes the edges of the domain (grazing angles, the extreme
-incidences) first and fills the inside after.
+(`~brdfjax.prediction.discrepancy.features`: half and difference angles, the half vector
+signed where the candidates leave the plane of incidence, and the incidence; in radians).
+The first point is a candidate drawn with ``seed``; each next one is the candidate farthest
+from every point chosen. It was preferred to a scrambled Sobol set snapped to the nearest
+unused candidate because candidates are a finite set, often a regular grid: two Sobol
+points near one node snap to neighbouring nodes, so the snapped design's minimum distance
+can fall to the grid's step, no better than a random subset's, whereas greedy maximin makes
+that minimum as large as it can (at least half the best possible). It also spreads in the
+space the process learns in. Its known weakness: it takes the edges of the domain (grazing
+angles, the extreme incidences) first and fills the inside after.
 
 **The model.** ``model="auto"`` chooses it as ``brdfjax fit --model auto --predict`` does
 (`auto_model`: `brdfjax.prediction.selection.compare_models` with the learned discrepancy,
@@ -455,8 +453,8 @@ def integrated_variance_design(kernel, prior_variance: float, noise: float, know
         drop = np.maximum(squares, 0.0) / (np.maximum(variance_c, 0.0) + noise2)
         drops.append(drop)
         # The first of the candidates within 1e-9 of the largest drop: geometries the
-        # process cannot tell apart (mirror images in azimuth) tie to rounding, and the
-        # choice among them must not follow the last bits of the input.
+        # process cannot tell apart (the same inputs) tie to rounding, and the choice
+        # among them must not follow the last bits of the input.
         drop = np.where(free, drop, -np.inf)
         pick = int(np.argmax(drop >= drop.max() * (1 - 1e-9)))
         picks.append(pick)
