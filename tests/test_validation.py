@@ -130,9 +130,9 @@ def test_the_process_has_a_floor_of_its_own_and_the_intervals_invert_it(
         monkeypatch, ggx_data, ggx_validation, ggx_fit):
     """The process learns log(y + F) - log(y_hat + F) with F 20 % of the median |BRDF|;
     the relative scores keep 5 %. With the process-scaled score, the prediction and its
-    interval are (y_hat + F) exp(mu +- q max(sigma, s0)) - F, with that F (computed here
-    from the data, not from the code's constants) and s0 the median sigma of the interior
-    folds' held-out points, which divides their scores too."""
+    interval are (y_hat + F) exp(mu +- q sqrt(sigma)) - F, with that F (computed here from
+    the data, not from the code's constants), and the interior folds' scores are their
+    log errors over sqrt(sigma)."""
     from brdfjax.prediction import discrepancy, intervals
 
     monkeypatch.setattr(intervals, "SIGMA_PREFERENCE", np.inf)  # the process-scaled score
@@ -157,16 +157,11 @@ def test_the_process_has_a_floor_of_its_own_and_the_intervals_invert_it(
     base = np.maximum(prediction.model_brdf, 0.0) + floor
     np.testing.assert_allclose(prediction.brdf, base * np.exp(mu) - floor, rtol=1e-12)
     folds, _ = intervals._corrected_folds(ggx_data, [(ggx_validation, ggx_fit.vector)])[0]
-    interior = [c for c in folds if c.fold.interior]
-    s0 = np.median(np.concatenate([c.sigma for c in interior]))
-    assert calibration.sigma_floor == pytest.approx(s0, rel=1e-12)
-    assert np.mean(np.concatenate([c.sigma for c in interior]) < s0) == pytest.approx(0.5, abs=0.01)
     scores = np.concatenate([
         np.abs(log_residual(ggx_data.brdf[c.held], c.value[c.held], floor) - c.mu)
-        / np.maximum(c.sigma, s0) for c in interior])
+        / np.sqrt(c.sigma) for c in folds if c.fold.interior])
     np.testing.assert_allclose(np.sort(calibration.interior), np.sort(scores), rtol=1e-9)
-    scale = q * np.maximum(sigma, s0)
-    assert np.any(sigma < s0)  # the floor is at work where these intervals are compared
+    scale = q * np.sqrt(sigma)
     np.testing.assert_allclose(prediction.lo95, base * np.exp(mu - scale) - floor, rtol=1e-12)
     np.testing.assert_allclose(prediction.hi95, base * np.exp(mu + scale) - floor, rtol=1e-12)
 
