@@ -442,8 +442,8 @@ READINGS = {"3-D": {}, "in-plane": {"in_plane": True}}
 def mirror_asymmetry(data) -> str:
     """The median of ``|y(phi_r) - y(-phi_r)| / their mean`` over the readings out of the plane
     of incidence whose mirror image in that plane was read too, as a table cell: an isotropic
-    sample reads both alike, and every isotropic model and the discrepancy's folded ``phi_d``
-    input take them for one geometry. ``-`` where there is no such pair (in the plane)."""
+    sample reads both alike, and every isotropic model takes them for one geometry. ``-``
+    where there is no such pair (in the plane)."""
     readings = by_geometry(data)
     differences = []
     for (theta_i, theta_r, phi_r), value in readings.items():

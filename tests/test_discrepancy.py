@@ -186,6 +186,30 @@ def test_out_of_plane_features_are_the_signed_half_vector():
     np.testing.assert_allclose(np.degrees([past[0], before[0]]), [-10.0, 2.5], atol=1e-9)
 
 
+def test_exports_average_a_correction_with_its_mirror_image():
+    """Learned out of the plane, the correction may differ between a direction and its
+    mirror image; the plane-symmetric export tables take the mean of the two log
+    corrections, the same on both sides."""
+    from brdfjax.data.formats.zemax import evaluate_model
+    from brdfjax.models.paper import brdf
+
+    rng = np.random.default_rng(3)
+    ti, tr = rng.uniform(0.1, 1.2, (2, 60))
+    pr = rng.uniform(0, 2 * np.pi, 60)
+    x = discrepancy.features(ti, tr, pr, azimuth=True)
+    r = 0.5 * np.sin(pr) + 0.01 * rng.standard_normal(60)  # one side brighter
+    (process,) = discrepancy.fit_discrepancies([(x, r)], floor=0.01, azimuth=True)
+    params = np.array([0.5, 0.3, 0.04, 0.02])  # ggx: ks, alpha, f0, kd
+    ti, tr, pr = np.radians([[30.0], [40.0], [60.0]])
+    mu_plus, mu_minus = (process.predict(ti, tr, phi)[0][0] for phi in (pr, -pr))
+    assert mu_plus - mu_minus > 0.3  # the correction learned the asymmetry
+    model = float(np.asarray(brdf(params, ti, tr, pr, model="ggx"))[0])
+    expected = process.correct(model, (mu_plus + mu_minus) / 2)
+    for phi in (60.0, -60.0, 300.0):
+        np.testing.assert_allclose(evaluate_model(params, 30.0, 40.0, phi, "ggx", process),
+                                   expected, rtol=1e-12)
+
+
 def test_subsample_keeps_every_incidence_its_share():
     incidence = np.radians(np.repeat([10.0, 30.0, 50.0, 70.0], 500))
     theta_r = np.radians(np.tile(np.linspace(0, 85, 250), 8))

@@ -28,7 +28,7 @@ intervals inside the measured incidences (extrapolation keeps the cross-validati
 
 **The journal** (`brdfjax.instrument.acquire.Journal`) is ``measure``'s: its first line
 holds the run's settings (`Settings`: the region, a digest of the candidates, the model,
-seed and reading settings; not the stop rule, so that a finished run can be resumed with a
+seed, reading settings and score form; not the stop rule, so that a finished run can be resumed with a
 smaller target or a larger budget). A ``batch`` line lists a batch's geometries before any
 is read, each ``reading`` line carries the instrument seconds it took (motors, changer,
 integrations), and a ``round`` line holds each assessment. A rerun with the same journal
@@ -90,7 +90,10 @@ STOPPED = {"target": "the target width was reached",
 @dataclass(frozen=True)
 class Settings:
     """What decides an adaptive run's readings (the journal's first line): the region's
-    geometries, the candidates' digest (`digest`), and the fit's and the readings' settings."""
+    geometries, the candidates' digest (`digest`), the fit's and the readings' settings,
+    and the power of sigma in the process-scaled score
+    (`brdfjax.prediction.intervals.SIGMA_POWER`), in which the journal's batch scores were
+    computed: a journal scored another way is refused, not mixed."""
 
     region: tuple
     candidates: str
@@ -101,6 +104,7 @@ class Settings:
     average: int
     integration_ms: float
     beam_margin: float
+    sigma_power: float
 
     def to_dict(self) -> dict:
         record = asdict(self)
@@ -264,9 +268,11 @@ def measure_adaptive(port: str, region: Plan, out, *, candidates: Measurements |
     check_reference(reference_reflectance)
     check_settings(points, candidates, target_width=target_width, model=model, start=start,
                    batch=batch, max_readings=max_readings, max_minutes=max_minutes)
+    from brdfjax.prediction.intervals import SIGMA_POWER
+
     settings = Settings(tuple(p.angles for p in region.points), digest(candidates), model,
                         seed, start, batch, region.average, region.integration_ms,
-                        region.beam_margin)
+                        region.beam_margin, SIGMA_POWER)
     journal_path = Path(out).with_suffix(".journal.jsonl") if journal is None else journal
     record = Journal(journal_path, settings)
     loop = _Loop(record, settings, candidates, points,

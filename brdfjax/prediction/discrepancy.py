@@ -35,8 +35,8 @@ prediction where nothing was measured:
   likelihood. The ``share`` of the correction is common to every incidence; the rest
   varies with the incidence, so that an unmeasured incidence gets the shape error of its
   neighbours, weighted by how near they are, and a ``sigma`` that grows with the distance
-  to them: a held-out incidence of the calibration (predicted across a wider gap) and a
-  new one are then scored on one scale. Its length scale is at least
+  to them (faster than the errors do: `brdfjax.prediction.intervals.SIGMA_POWER`). Its
+  length scale is at least
   ``HYPER_BOX["incidence"][0]`` (0.4 rad, 23 deg: about the spacing of a goniometer's
   incidences), so that it never becomes an independent offset per measured incidence:
   with the bound at 0.01 rad the process of all of NiTE on steel A's training points
@@ -47,9 +47,11 @@ prediction where nothing was measured:
   bench_predictive.DECIDE's split included: for these two choices that split is not clean.
   The incidence input is a choice: the correction learns measured data, whose errors (the
   model's and the instrument's) follow the incidence of each scan, and it is not
-  reciprocal in ``theta_i <-> theta_r`` (the angle inputs are);
+  reciprocal in ``theta_i <-> theta_r`` (the angle inputs are in the plane; out of it the
+  signed half vector is not either);
 - the prediction is ``(y_hat + floor) exp(mu) - floor``; ``sigma`` (the predictive standard
-  deviation of a new measurement's ``r``, noise included) scales the conformal score.
+  deviation of a new measurement's ``r``, noise included), raised to
+  `brdfjax.prediction.intervals.SIGMA_POWER`, scales the conformal score.
 
 Scale: a process is fitted to at most `MAX_POINTS` training points. Above that the rule is
 fixed (`subsample`): the points sorted by incidence, then along a Z-order curve over the

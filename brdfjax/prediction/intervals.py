@@ -73,7 +73,8 @@ DISCREPANCIES = ("gp", "none")
 # held-out points are this many times wider than the relative score's (`calibrate_all`).
 # Chosen on the four runs bench_predictive.DECIDE (ggx and five; 1, 1.25, 1.5, 2 and never
 # tried), with the previous process (angles only, before 03048ac): 1.25 gave ggx 93 % coverage
-# at a 15 % median half-width and five 97 % at 55 %. Not re-chosen for the incidence-aware one.
+# at a 15 % median half-width and five 97 % at 55 %. Not re-chosen for the incidence-aware one,
+# nor for the score over the square root of sigma (`SIGMA_POWER`).
 SIGMA_PREFERENCE = 1.25
 # The power of the process's sigma that the process-scaled score divides by (the module
 # docstring). Chosen on 2026-12-07 with ggx on the 14 RT-300S runs (in the plane and, for 8,

@@ -493,7 +493,11 @@ def evaluate_model(params, theta_i_deg, theta_r_deg, phi_r_deg, model=None,
     The one place the Zemax and ASTM exports evaluate a fitted model (``model``: a name or
     `brdfjax.models.Model`, the five-parameter model if None), corrected by a learned
     discrepancy where ``correction`` (a `brdfjax.prediction.discrepancy.Discrepancy`) is given: then
-    the values are those `brdfjax.predict` gives at the same angles.
+    the values are those `brdfjax.predict` gives at the same angles, except that a correction
+    learned out of the plane of incidence, which may differ between a direction and its
+    mirror image across that plane (`brdfjax.prediction.discrepancy.features`), is averaged
+    with its mirror image (the mean of the two log corrections): both tables are
+    plane-symmetric, and a table's TIS counts its half twice.
     """
     from brdfjax.models.paper import brdf  # JAX only for the export
 
@@ -502,7 +506,10 @@ def evaluate_model(params, theta_i_deg, theta_r_deg, phi_r_deg, model=None,
               for x in (theta_i_deg, theta_r_deg, phi_r_deg)]
     values = np.asarray(brdf(params, *angles, model=model), dtype=float)
     if correction is not None:
-        values = correction.correct(values, correction.predict(*angles)[0])
+        mu = correction.predict(*angles)[0]
+        if correction.azimuth:
+            mu = (mu + correction.predict(angles[0], angles[1], -angles[2])[0]) / 2
+        values = correction.correct(values, mu)
     return values.reshape(shape)
 
 
