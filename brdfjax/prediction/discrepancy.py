@@ -21,12 +21,12 @@ prediction where nothing was measured:
   instrument's asymmetry), nor do anisotropic samples. With the mirror folded into one
   input, the process took that difference for noise, and its predictions of held-out
   incidences of the 8 RT-300S runs read whole erred 12.4 % (median) at a median 95 %
-  half-width of 91 %; with the signed half vector 4.9 % at 29 % (ggx, 2026-12-07,
-  BENCHMARKS.md predictive-3d), and NIST's PTFE, an isotropic diffuser, did not lose (0.8 %
-  pooled over its four wavelengths either way). In the plane the
-  inputs stay ``(theta_h, theta_d, theta_i)``: there the sign of ``phi_h`` says on which
-  side of the specular direction a reading lies, which ``theta_d`` and ``theta_i`` already
-  say;
+  half-width of 91 %; with the signed half vector 4.9 % at 26 % (with the intervals'
+  `brdfjax.prediction.intervals.SIGMA_POWER`; ggx, 2026-12-07, BENCHMARKS.md predictive-3d),
+  and NIST's PTFE, an isotropic diffuser, did not lose (0.8 % pooled over its four
+  wavelengths either way). In the plane the inputs stay ``(theta_h, theta_d, theta_i)``:
+  there the sign of ``phi_h`` says on which side of the specular direction a reading lies,
+  which ``theta_d`` and ``theta_i`` already say;
 - the process has a constant mean and the kernel
   ``amplitude^2 SE(angles) (share + (1 - share) SE(theta_i))``, with SE a squared
   exponential of one length scale per input (ARD), plus a white-noise term, all learned by
