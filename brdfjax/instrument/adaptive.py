@@ -28,13 +28,13 @@ intervals inside the measured incidences (extrapolation keeps the cross-validati
 
 **The journal** (`brdfjax.instrument.acquire.Journal`) is ``measure``'s: its first line
 holds the run's settings (`Settings`: the region, a digest of the candidates, the model,
-seed, reading settings and score form; not the stop rule, so that a finished run can be resumed with a
-smaller target or a larger budget). A ``batch`` line lists a batch's geometries before any
-is read, each ``reading`` line carries the instrument seconds it took (motors, changer,
-integrations), and a ``round`` line holds each assessment. A rerun with the same journal
-replays it: recorded batches are read (only their missing readings), not planned again;
-recorded rounds are not fitted again; from there the same seed makes the same decisions.
-Nothing read is lost or read twice.
+seed, reading settings and score form; not the stop rule, so that a finished run can be
+resumed with a smaller target or a larger budget). A ``batch`` line lists a batch's
+geometries before any is read, each ``reading`` line carries the instrument seconds it took
+(motors, changer, integrations), and a ``round`` line holds each assessment. A rerun with
+the same journal replays it: recorded batches are read (only their missing readings), not
+planned again; recorded rounds are not fitted again; from there the same seed makes the
+same decisions. Nothing read is lost or read twice.
 """
 
 from __future__ import annotations
