@@ -100,8 +100,9 @@ class Calibration:
         corrected_errors: with a discrepancy, each fold's held-out E of Eq. (6) of the
             corrected prediction, by the fold's label.
         interior_labels: the labels of the interior folds.
-        score: ``sigma`` (the log residual's error over the process's sigma) or
-            ``relative`` (``|y - prediction| / (|prediction| + floor)``): with a
+        score: ``sigma`` (the log residual's error over the process's sigma to the power
+            `SIGMA_POWER`) or ``relative`` (``|y - prediction| / (|prediction| +
+            floor)``): with a
             discrepancy, as `calibrate_all` chooses; without one, ``relative``.
     """
 
