@@ -598,8 +598,9 @@ def test_model_auto_picks_the_model_that_made_the_data_for_every_sample(tmp_path
     out = tmp_path / "results.csv"
     assert main(["batch", str(tmp_path), "--model", "auto", "--out", str(out)]) == 0
     said = capsys.readouterr().err
-    assert "--model auto: ggx, the lowest median cv_error (" in said, said
-    assert "over 2 of 2 samples; next five (" in said and compared == [int(keep.sum())] * 2
+    assert ("--model auto: ggx, recommended by brdfjax models (the one-standard-error rule) "
+            "on 2 of 2 samples compared (2 in all); median cv_error ") in said, said
+    assert ", the lowest\n" in said and compared == [int(keep.sum())] * 2
     table = rows(out.read_text())
     assert [r["model"] for r in table] == ["ggx", "ggx"]
     assert all(float(r["error"]) < 1e-12 and "alpha" in r for r in table)
@@ -666,7 +667,8 @@ def test_model_auto_shows_a_progress_bar_while_it_chooses(monkeypatch, capsys):
         if data == "bad":
             raise DataError("no readings")
         return SimpleNamespace(scores=[SimpleNamespace(name="ggx", cv_error=0.01),
-                                       SimpleNamespace(name="five", cv_error=0.02)])
+                                       SimpleNamespace(name="five", cv_error=0.02)],
+                               best=SimpleNamespace(name="ggx"))
 
     monkeypatch.setattr(selection, "compare_models", compare)
     chosen = choose_model(["a", "bad", "b", "c"], SimpleNamespace(seed=0), read=lambda k: k)
@@ -674,4 +676,33 @@ def test_model_auto_shows_a_progress_bar_while_it_chooses(monkeypatch, capsys):
     err = capsys.readouterr().err
     assert "--model auto: every model cross-validated on" in err
     assert "3/4" in err and "1 unreadable, skipped" in err
-    assert err.rstrip().splitlines()[-1].startswith("--model auto: ggx, the lowest")
+    assert err.rstrip().splitlines()[-1].startswith("--model auto: ggx, recommended by brdfjax "
+                                                    "models (the one-standard-error rule) on 3")
+
+
+def test_model_auto_of_a_batch_takes_the_recommendation_of_most_samples(monkeypatch, capsys):
+    """The batch's model is the one ``brdfjax models`` recommends (`Comparison.best`, the
+    one-standard-error rule) on most samples, not the lowest median cv_error: here the sum
+    is lowest on every sample by less than the noise, and ggx is recommended on two of
+    three. A tie of votes goes to fewer parameters."""
+    from types import SimpleNamespace
+
+    from brdfjax.commands.batch import choose_model
+    from brdfjax.prediction import selection
+
+    best = {"a": "ggx", "b": "ggx+ggx", "c": "ggx", "d": "ggx+ggx"}
+
+    def compare(data, **_):
+        return SimpleNamespace(scores=[SimpleNamespace(name="ggx", cv_error=0.012),
+                                       SimpleNamespace(name="ggx+ggx", cv_error=0.010)],
+                               best=SimpleNamespace(name=best[data]))
+
+    monkeypatch.setattr(selection, "compare_models", compare)
+    assert choose_model(["a", "b", "c"], SimpleNamespace(seed=0), read=lambda k: k) == "ggx"
+    line = capsys.readouterr().err.rstrip().splitlines()[-1]
+    assert line == ("--model auto: ggx, recommended by brdfjax models (the one-standard-error "
+                    "rule) on 2 of 3 samples compared (3 in all); median cv_error 1.2 %, the "
+                    "lowest ggx+ggx (1 %); next ggx+ggx (1 of 3)"), line
+    assert choose_model(["a", "b"], SimpleNamespace(seed=0), read=lambda k: k) == "ggx"
+    best["a"] = "ggx+ggx"
+    assert choose_model(["a", "c", "d"], SimpleNamespace(seed=0), read=lambda k: k) == "ggx+ggx"

@@ -83,8 +83,8 @@ def register(subparsers) -> None:
     p.add_argument("--model", default="five", metavar="NAME",
                    help="the model to fit: five (default), torrance-sparrow, ggx, beckmann, "
                         "lambert, rpv, backscatter, abg, ross-li, or a sum such as "
-                        "ggx+backscatter; auto: the lowest median cv_error over the first "
-                        f"{AUTO_SAMPLES} samples (brdfjax models on each), for every sample")
+                        "ggx+backscatter; auto: the model brdfjax models recommends on most of "
+                        f"the first {AUTO_SAMPLES} samples, for every sample")
     p.add_argument("--bound", action="append", default=[], metavar="NAME=LO:HI",
                    help="override a parameter's search range, e.g. b=-80:10")
     for name, text in SEARCH_OPTIONS.items():  # no LM steps (0) leaves the search's result
@@ -609,18 +609,22 @@ def read_sample(key: str, args):
 
 
 def choose_model(keys, args, read=None) -> str:
-    """``--model auto`` of a batch: one model for every sample, the one with the lowest
-    median cv_error over the first `AUTO_SAMPLES` samples that can be compared (one model
-    keeps the CSV's columns, and the samples' parameters, comparable). Said on stderr, after
-    a progress bar of the samples cross-validated (a few seconds each, the first with the
-    models' compilation: half a minute with empty caches)."""
+    """``--model auto`` of a batch: one model for every sample (one model keeps the CSV's
+    columns, and the samples' parameters, comparable). It is the model ``brdfjax models``
+    recommends (the one-standard-error rule, `Comparison.best`) on most of the first
+    `AUTO_SAMPLES` samples that can be compared; a tie goes to fewer parameters, then to the
+    lower median cv_error. The lowest median cv_error alone, the rule before, took a sum
+    whose second lobe ``models`` found no better than the noise of the held-out points. Said
+    on stderr, after a progress bar of the samples cross-validated (a few seconds each, the
+    first with the models' compilation: half a minute with empty caches)."""
     import numpy as np
     from tqdm import tqdm
 
     from brdfjax.data.measurements import DataError
-    from brdfjax.prediction.selection import choice_line, compare_models, ranked, tied_first
+    from brdfjax.models import get
+    from brdfjax.prediction.selection import compare_models, ranked
 
-    errors, used, reasons = {}, 0, []
+    errors, votes, used, reasons = {}, {}, 0, []
     with tqdm(total=min(AUTO_SAMPLES, len(keys)), unit="sample", file=sys.stderr,
               desc="--model auto: every model cross-validated on") as bar:
         for key in keys:
@@ -633,6 +637,7 @@ def choose_model(keys, args, read=None) -> str:
                 continue
             for score in comparison.scores:
                 errors.setdefault(score.name, []).append(score.cv_error)
+            votes[comparison.best.name] = votes.get(comparison.best.name, 0) + 1
             used += 1
             bar.update()
             if used == AUTO_SAMPLES:
@@ -641,13 +646,16 @@ def choose_model(keys, args, read=None) -> str:
         raise ValueError("--model auto: no sample could be cross-validated to choose a model "
                          f"({reasons[0] if reasons else 'no inputs'}); give --model NAME")
     median = {name: float(np.median(values)) for name, values in errors.items()}
-    order, tied = ranked(median), tied_first(median)
-    runner = next((name for name in order if name not in tied), None)
-    print(f"--model auto: {choice_line(median, 'median cv_error')} over {used} of "
-          f"{len(keys)} samples"
-          + (f"; next {runner} ({100 * median[runner]:.3g} %)" if runner else ""),
+    order = sorted(votes, key=lambda name: (-votes[name], get(name).size, median[name]))
+    chosen, lowest = order[0], ranked(median)[0]  # within 0.1 %: a tie, fewer parameters
+    print(f"--model auto: {chosen}, recommended by brdfjax models (the one-standard-error "
+          f"rule) on {votes[chosen]} of {used} samples compared ({len(keys)} in all); "
+          f"median cv_error {100 * median[chosen]:.3g} %"
+          + (f", the lowest {lowest} ({100 * median[lowest]:.3g} %)" if lowest != chosen
+             else ", the lowest")
+          + (f"; next {order[1]} ({votes[order[1]]} of {used})" if len(order) > 1 else ""),
           file=sys.stderr)
-    return order[0]
+    return chosen
 
 
 def _fit_chunks(chunks, scheduler, options, record, cube: bool = False) -> list:
