@@ -162,7 +162,7 @@ def test_journal_drops_a_cut_short_line_and_refuses_another_plan(tmp_path):
     journal.close()
     assert [json.loads(line)["kind"] for line in path.read_text().splitlines()] == [
         "plan", "reading", "reading"]
-    with pytest.raises(DataError, match="another plan"):
+    with pytest.raises(DataError, match="another plan.*its incidence differ from this run's"):
         Journal(path, Plan(incidence=(40,), theta_r=(0, 10, 10)))
     journal = Journal(path, plan)
     with pytest.raises(DataError, match="in use by another acquisition"):
@@ -288,6 +288,9 @@ def test_bad_configuration_fails_before_any_motor_moves(simulator, tmp_path, cap
     out = str(tmp_path / "never.csv")
     assert main(["measure", "--port", "/dev/no-such-port", "--out", out, *PLAN_OPTIONS]) == 1
     assert "cannot open the instrument's port /dev/no-such-port" in capsys.readouterr().err
+    # A journal without a reading is not kept: it tied the file to the plan of a run that
+    # never started, and refused the next run's other settings.
+    assert not (tmp_path / "never.journal.jsonl").exists()
 
     _, port = simulator()
     assert main(["measure", "--port", port, "--baud", "9600", "--timeout", "0.3",
@@ -589,3 +592,8 @@ def test_adaptive_bad_input_fails_before_any_motor_moves(tmp_path, capsys):
     assert main(["measure", *port, "--incidence", "30,85", "--adaptive"]) == 1
     assert "85 deg" in capsys.readouterr().err
     assert not (tmp_path / "never.journal.jsonl").exists()
+    for incidences in ("10,30,50,70", "10,30,50"):  # the second is not refused for the first
+        assert main(["measure", *port, *REGION[2:], "--incidence", incidences,
+                     "--adaptive"]) == 1
+        assert "cannot open the instrument's port" in capsys.readouterr().err
+        assert not (tmp_path / "never.journal.jsonl").exists()

@@ -98,8 +98,9 @@ class Journal:
                                 "only the last line of a journal can be cut short") from None
             if number == 1 and record.get("plan") != plan.to_dict():
                 raise DataError("this journal was written for another plan", self.path,
-                                hint=f"it holds {record.get('plan')}; measure that plan "
-                                     "again, or give a new --journal")
+                                hint=f"its {_differences(record.get('plan'), plan.to_dict())}"
+                                     " differ from this run's; measure that plan again, or "
+                                     "give a new --journal")
             key = (record.get("point"), record.get("target"))
             if record.get("kind") == "reading" and key in self.readings:
                 raise DataError(f"reading {key} appears twice", self.path, number)
@@ -129,7 +130,25 @@ class Journal:
         self._remember(record)
 
     def close(self) -> None:
+        """Close the journal; one that holds no reading is removed (it records nothing a
+        rerun needs, and would tie the output file to its plan: a run whose port would
+        not open refused the next run's other settings)."""
+        if not self.readings and not self._handle.closed:
+            self.path.unlink(missing_ok=True)
         self._handle.close()
+
+
+def _differences(old, new) -> str:
+    """The names of the settings that two plans' dicts (an adaptive run's nested one level,
+    ``{"adaptive": {...}}``) hold with different values: ``"incidence, seed"``."""
+    def flat(plan):
+        settings = {}
+        for key, part in (plan if isinstance(plan, dict) else {}).items():
+            settings.update(part if isinstance(part, dict) else {key: part})
+        return settings
+
+    old, new = flat(old), flat(new)
+    return ", ".join(sorted(k for k in old.keys() | new.keys() if old.get(k) != new.get(k)))
 
 
 def measure(port: str, plan: Plan, out, *, journal=None, reference_reflectance: float = 0.99,
