@@ -141,6 +141,9 @@ def test_the_command_writes_a_geometry_file_and_a_plan(measured, tmp_path, capsy
     assert len(written) == len(listed.points) == 8
     assert np.allclose(np.degrees([written.theta_i, written.theta_r, written.phi_r]).T,
                        listed.geometries)
+    # Degrees as a user wrote them: 30, not the 29.999999999999996 of a round trip through
+    # radians (3 of these 8 geometries before).
+    assert not re.search(r"\d\.\d{9}", (tmp_path / "next.toml").read_text())
     assert "route:" in capsys.readouterr().out
     # From measurements, among a candidates file; the plan starts from the readings.
     candidates = Measurements.from_degrees(*np.array(

@@ -227,7 +227,10 @@ def plan(measured: Measurements | None, candidates: Measurements, budget: int, *
 
 def _plan(measured, candidates, found: Candidates, budget, *, region, model, seed) -> Plan:
     """`plan` of checked inputs."""
-    chosen_angles = np.degrees([candidates.theta_i, candidates.theta_r, candidates.phi_r])
+    # Degrees as the candidates gave them: 30, not the 29.999999999999996 of a round trip
+    # through radians, in the plan file a user reads.
+    chosen_angles = np.round(np.degrees([candidates.theta_i, candidates.theta_r,
+                                         candidates.phi_r]), 9) + 0.0
     index = found.index
     if measured is None:
         picks = _maximin(_features_of(candidates, index), budget, seed)
