@@ -592,7 +592,10 @@ def plot_models(data, comparison, path, title: str = "", max_panels: int = 6,
     fits draw the same curve (`same_curves`) count once. Solid: the
     fit on all incidences; dashed: the fit of the fold that held this incidence out, i.e.
     the model's prediction of an incidence it did not see. The legend gives each model's
-    held-out E at that incidence; it stands below its panel, never over the curves.
+    held-out E at that incidence; it stands below its panel, never over the curves. The
+    curves are in the plane of incidence, and so are the readings drawn: of data that leave
+    it, those in it (drawn all, a 3-D scan's readings at every azimuth filled the area under
+    the curves, and a good fit looked poor).
 
     Returns:
         The matplotlib figure (already saved and closed), for inspection.
@@ -619,10 +622,12 @@ def plot_models(data, comparison, path, title: str = "", max_panels: int = 6,
     shown = same_curves(comparison.ranking, curves, max_models)
     if "five" in scores and not any("five" in group for group in shown.values()):
         shown |= same_curves(["five"], curves, 1)
+    drawn_data = data.select(np.abs(np.sin(data.phi_r)) < 1e-9)  # the plane of incidence
     for panel, (ax, fold, (angles, signed)) in enumerate(zip(axes.ravel(), panels,
                                                              panel_angles)):
-        subset = data.at_incidences([fold.low]) if fold.low == fold.high else data.select(
-            (np.degrees(data.theta_i) >= fold.low) & (np.degrees(data.theta_i) <= fold.high))
+        incidence = np.degrees(drawn_data.theta_i)
+        subset = drawn_data.select((incidence >= fold.low - 1e-6)
+                                   & (incidence <= fold.high + 1e-6))
         ax.plot(signed_angle_deg(subset), subset.brdf * np.cos(subset.theta_r), "o", ms=2.5,
                 color="0.2", zorder=3)
         held_errors = []
@@ -648,7 +653,9 @@ def plot_models(data, comparison, path, title: str = "", max_panels: int = 6,
     # One legend for every panel, below them (inside a panel it covered the curves, issue
     # 26; under each panel it repeated itself in tiny type, issue 47); each panel's title
     # gives the models' held-out E there.
-    handles = [plt.Line2D([], [], ls="", marker="o", ms=4, color="0.2", label="data")]
+    handles = [plt.Line2D([], [], ls="", marker="o", ms=4, color="0.2", label=(
+        "data" if data.in_plane else f"data in the plane of incidence ({len(drawn_data)} of "
+        f"{len(data)} readings)"))]
     handles += [plt.Line2D([], [], color=colours(k % 10), lw=1.5,
                            label=name + (f" ({', '.join(twins[1:])} the same)"
                                          if len(twins) > 1 else ""))
@@ -656,8 +663,8 @@ def plot_models(data, comparison, path, title: str = "", max_panels: int = 6,
     handles += [plt.Line2D([], [], color="0.35", lw=1.2, label="fit on all incidences"),
                 plt.Line2D([], [], color="0.35", lw=1.0, ls="--",
                            label="fit without this incidence (its prediction)")]
-    fig.legend(handles=handles, loc="lower center", ncol=min(4, len(handles)), fontsize=9,
-               frameon=False)
+    fig.legend(handles=handles, loc="lower center", fontsize=9, frameon=False,
+               ncol=min(4 if data.in_plane else 3, len(handles)))  # its longer label
     drawn = (f"the {len(comparison.ranking)} models drawn"
              if sum(map(len, shown.values())) == len(comparison.ranking) else
              f"the {min(max_models, len(shown))} lowest cv_error"

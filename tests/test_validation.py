@@ -546,6 +546,36 @@ def test_the_models_plot_keeps_its_legends_off_the_curves(tmp_path):
     assert [panel_columns(n) for n in range(1, 8)] == [1, 2, 3, 2, 3, 3, 3]
 
 
+def test_the_models_plot_of_a_3d_scan_draws_the_readings_in_the_plane_of_its_curves(tmp_path):
+    """The panels' curves are in the plane of incidence; a 3-D scan's readings at every
+    azimuth, drawn against theta_r beside them, filled the area under the curves and made a
+    good fit look poor (found by a newcomer on NiTE on invar A read whole). Drawn: the
+    readings in the plane, the legend saying how many of all; it stays inside the figure."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from brdfjax.models.paper import PAPER_SAMPLES
+    from brdfjax.plot import plot_models
+    from brdfjax.prediction.selection import compare_models
+
+    angles = np.array([(i, r, a) for i in (10, 30, 50) for r in range(5, 80, 10)
+                       for a in (0, 45, 90, 135, 180)], float)
+    values = np.asarray(brdf(PAPER_SAMPLES["white_paint"], *np.radians(angles.T)))
+    data = Measurements.from_degrees(*angles.T, values)
+    figure = plot_models(data, compare_models(data, ["lambert"], discrepancy="none"),
+                         tmp_path / "models.png")
+    panels = [ax for ax in figure.axes if ax.axison]
+    assert len(panels) == 3
+    for ax in panels:  # 8 zeniths on each side of the normal
+        assert len(ax.lines[0].get_xdata()) == 16, ax.get_title()
+    canvas = FigureCanvasAgg(figure)
+    canvas.draw()
+    (legend,) = figure.legends
+    assert legend.get_texts()[0].get_text() == ("data in the plane of incidence (48 of 120 "
+                                                "readings)")
+    box = legend.get_window_extent(canvas.get_renderer())
+    assert figure.bbox.contains(box.x0, box.y0) and figure.bbox.contains(box.x1, box.y1)
+
+
 def test_the_models_plot_draws_models_that_fit_alike_once():
     """ggx+backscatter with its lobe off is ggx: drawn apart, one curve hid the other. The
     simpler model is drawn and names its twin; with the lobe on, each is drawn."""
