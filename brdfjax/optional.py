@@ -29,4 +29,5 @@ def require(module: str, extra: str, purpose: str, package: str | None = None) -
         return importlib.import_module(module)
     except ImportError as missing:
         raise MissingDependency(f"{purpose} needs {package or module.split('.')[0]}, which is "
-                                f"not installed here: pip install 'brdfjax[{extra}]'") from missing
+                                f"not installed here: pip install 'brdfjax[{extra}]' (in a "
+                                f"checkout of brdfjax: pip install -e '.[{extra}]')") from missing

@@ -205,16 +205,18 @@ def test_mcmc_without_emcee_is_one_clear_error_before_the_fit(tmp_path, capsys, 
                  "--uncertainty", "mcmc"]) == 1
     assert capsys.readouterr().err.strip().splitlines() == [
         ("brdfjax fit: error: MCMC sampling (--uncertainty mcmc) needs emcee, which is not "
-        "installed here: pip install 'brdfjax[mcmc]'")]
+        "installed here: pip install 'brdfjax[mcmc]' (in a checkout of brdfjax: pip install "
+        "-e '.[mcmc]')")]
 
 
 @pytest.mark.parametrize("module, argv, said", [
     ("corner", ["fit", str(DATA / "synthetic" / "white_paint.csv"), "--plot-corner", "c.png"],
      ("the corner plot (--plot-corner) needs corner, which is not installed here: "
-      "pip install 'brdfjax[mcmc]'")),
+      "pip install 'brdfjax[mcmc]' (in a checkout of brdfjax: pip install -e '.[mcmc]')")),
     ("serial", ["measure", "--port", "/dev/null", "--incidence", "10", "--out", "m.csv"],
      ("the instrument driver (brdfjax measure) needs pyserial, which is not installed here: "
-      "pip install 'brdfjax[instrument]'")),
+      "pip install 'brdfjax[instrument]' (in a checkout of brdfjax: pip install -e "
+      "'.[instrument]')")),
 ])
 def test_a_missing_optional_package_is_one_line_before_any_work(module, argv, said, tmp_path,
                                                                capsys, monkeypatch):
