@@ -273,7 +273,8 @@ def test_scheduler_without_dask_is_one_clear_error_before_any_work(tmp_path, mon
                  "--scheduler", "tcp://127.0.0.1:8786"]) == 1
     said = capsys.readouterr().err.strip().splitlines()
     assert said == [("brdfjax batch: error: --scheduler needs dask, which is not installed "
-                     "here: pip install 'brdfjax[batch]'")]
+                     "here: pip install 'brdfjax[batch]' (in a checkout of brdfjax: pip "
+                     "install -e '.[batch]')")]
     assert not out.exists()
 
 

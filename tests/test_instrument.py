@@ -162,7 +162,7 @@ def test_journal_drops_a_cut_short_line_and_refuses_another_plan(tmp_path):
     journal.close()
     assert [json.loads(line)["kind"] for line in path.read_text().splitlines()] == [
         "plan", "reading", "reading"]
-    with pytest.raises(DataError, match="another plan.*its incidence differ from this run's"):
+    with pytest.raises(DataError, match="another plan.*its plan differs from this run's in incidence;"):
         Journal(path, Plan(incidence=(40,), theta_r=(0, 10, 10)))
     journal = Journal(path, plan)
     with pytest.raises(DataError, match="in use by another acquisition"):

@@ -613,10 +613,11 @@ def choose_model(keys, args, read=None) -> str:
     columns, and the samples' parameters, comparable). It is the model ``brdfjax models``
     recommends (the one-standard-error rule, `Comparison.best`) on most of the first
     `AUTO_SAMPLES` samples that can be compared; a tie goes to fewer parameters, then to the
-    lower median cv_error. The lowest median cv_error alone, the rule before, took a sum
-    whose second lobe ``models`` found no better than the noise of the held-out points. Said
-    on stderr, after a progress bar of the samples cross-validated (a few seconds each, the
-    first with the models' compilation: half a minute with empty caches)."""
+    lower median cv_error. The lowest median cv_error alone, the rule before, could take a
+    sum lower by less than the noise of the held-out points, which ``models`` does not
+    recommend. Said on stderr, after a progress bar of the samples cross-validated (a few
+    seconds each, the first with the models' compilation: half a minute with empty
+    caches)."""
     import numpy as np
     from tqdm import tqdm
 

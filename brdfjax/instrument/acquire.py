@@ -98,9 +98,9 @@ class Journal:
                                 "only the last line of a journal can be cut short") from None
             if number == 1 and record.get("plan") != plan.to_dict():
                 raise DataError("this journal was written for another plan", self.path,
-                                hint=f"its {_differences(record.get('plan'), plan.to_dict())}"
-                                     " differ from this run's; measure that plan again, or "
-                                     "give a new --journal")
+                                hint="its plan differs from this run's in "
+                                     f"{_differences(record.get('plan'), plan.to_dict())}; "
+                                     "measure that plan again, or give a new --journal")
             key = (record.get("point"), record.get("target"))
             if record.get("kind") == "reading" and key in self.readings:
                 raise DataError(f"reading {key} appears twice", self.path, number)
