@@ -622,7 +622,8 @@ def plot_models(data, comparison, path, title: str = "", max_panels: int = 6,
     shown = same_curves(comparison.ranking, curves, max_models)
     if "five" in scores and not any("five" in group for group in shown.values()):
         shown |= same_curves(["five"], curves, 1)
-    drawn_data = data.select(np.abs(np.sin(data.phi_r)) < 1e-9)  # the plane of incidence
+    # The plane of incidence, the normal (in every plane) included.
+    drawn_data = data.select((np.abs(np.sin(data.phi_r)) < 1e-9) | (data.theta_r < 1e-9))
     for panel, (ax, fold, (angles, signed)) in enumerate(zip(axes.ravel(), panels,
                                                              panel_angles)):
         incidence = np.degrees(drawn_data.theta_i)

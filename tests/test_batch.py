@@ -707,3 +707,11 @@ def test_model_auto_of_a_batch_takes_the_recommendation_of_most_samples(monkeypa
     assert choose_model(["a", "b"], SimpleNamespace(seed=0), read=lambda k: k) == "ggx"
     best["a"] = "ggx+ggx"
     assert choose_model(["a", "c", "d"], SimpleNamespace(seed=0), read=lambda k: k) == "ggx+ggx"
+
+    def alike(data, **_):  # two models of 4 parameters, one vote each: the lower median wins
+        return SimpleNamespace(scores=[SimpleNamespace(name="ggx", cv_error=0.012),
+                                       SimpleNamespace(name="beckmann", cv_error=0.011)],
+                               best=SimpleNamespace(name={"a": "ggx", "b": "beckmann"}[data]))
+
+    monkeypatch.setattr(selection, "compare_models", alike)
+    assert choose_model(["a", "b"], SimpleNamespace(seed=0), read=lambda k: k) == "beckmann"

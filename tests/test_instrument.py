@@ -162,8 +162,15 @@ def test_journal_drops_a_cut_short_line_and_refuses_another_plan(tmp_path):
     journal.close()
     assert [json.loads(line)["kind"] for line in path.read_text().splitlines()] == [
         "plan", "reading", "reading"]
+    kept = path.read_text()
     with pytest.raises(DataError, match="another plan.*its plan differs from this run's in incidence;"):
         Journal(path, Plan(incidence=(40,), theta_r=(0, 10, 10)))
+    assert path.read_text() == kept  # a refused journal is left as it was, readings and all
+    other = tmp_path / "notes.txt"
+    other.write_text("not a journal\n")
+    with pytest.raises(DataError, match="not a JSON line"):
+        Journal(other, plan)
+    assert other.read_text() == "not a journal\n"
     journal = Journal(path, plan)
     with pytest.raises(DataError, match="in use by another acquisition"):
         Journal(path, plan)

@@ -83,8 +83,8 @@ def register(subparsers) -> None:
     p.add_argument("--model", default="five", metavar="NAME",
                    help="the model to fit: five (default), torrance-sparrow, ggx, beckmann, "
                         "lambert, rpv, backscatter, abg, ross-li, or a sum such as "
-                        "ggx+backscatter; auto: the model brdfjax models recommends on most of "
-                        f"the first {AUTO_SAMPLES} samples, for every sample")
+                        "ggx+backscatter; auto: the model brdfjax models recommends most often "
+                        f"over the first {AUTO_SAMPLES} samples, for every sample")
     p.add_argument("--bound", action="append", default=[], metavar="NAME=LO:HI",
                    help="override a parameter's search range, e.g. b=-80:10")
     for name, text in SEARCH_OPTIONS.items():  # no LM steps (0) leaves the search's result
@@ -611,13 +611,13 @@ def read_sample(key: str, args):
 def choose_model(keys, args, read=None) -> str:
     """``--model auto`` of a batch: one model for every sample (one model keeps the CSV's
     columns, and the samples' parameters, comparable). It is the model ``brdfjax models``
-    recommends (the one-standard-error rule, `Comparison.best`) on most of the first
-    `AUTO_SAMPLES` samples that can be compared; a tie goes to fewer parameters, then to the
-    lower median cv_error. The lowest median cv_error alone, the rule before, could take a
-    sum lower by less than the noise of the held-out points, which ``models`` does not
-    recommend. Said on stderr, after a progress bar of the samples cross-validated (a few
-    seconds each, the first with the models' compilation: half a minute with empty
-    caches)."""
+    recommends (the one-standard-error rule, `Comparison.best`) more often than any other
+    over the first `AUTO_SAMPLES` samples that can be compared; a tie goes to fewer
+    parameters, then to the lower median cv_error. The lowest median cv_error alone, the
+    rule before, could take a sum lower by less than the noise of the held-out points,
+    which ``models`` does not recommend. Said on stderr, after a progress bar of the samples
+    cross-validated (a few seconds each, the first with the models' compilation: half a
+    minute with empty caches)."""
     import numpy as np
     from tqdm import tqdm
 

@@ -82,7 +82,7 @@ class Journal:
             try:
                 self._load(plan)
             except DataError:
-                self.close()
+                self._handle.close()  # kept whatever it holds: not a journal of this run
                 raise
         if self.path.stat().st_size == 0:
             self.append({"kind": "plan", "version": JOURNAL_VERSION, "plan": plan.to_dict()})
