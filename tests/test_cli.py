@@ -232,6 +232,23 @@ def test_a_missing_optional_package_is_one_line_before_any_work(module, argv, sa
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_bad_setting_is_named_before_a_missing_pyserial(tmp_path, capsys, monkeypatch):
+    """``measure`` checks its settings before it asks for pyserial: without pyserial, a
+    target width of 0 was answered with the pyserial error (found by a newcomer)."""
+    import sys
+
+    monkeypatch.setitem(sys.modules, "serial", None)  # its import now fails
+    monkeypatch.chdir(tmp_path)
+    base = ["measure", "--port", "/dev/null", "--incidence", "10,30,50", "--out", "m.csv"]
+    assert main([*base, "--adaptive", "--target-width", "0"]) == 1
+    assert "--target-width 0 %: give the median 95 % half-width" in capsys.readouterr().err
+    assert main([*base, "--target-width", "5"]) == 1
+    assert "--target-width: only with --adaptive" in capsys.readouterr().err
+    assert main([*base, "--adaptive"]) == 1  # good settings: then pyserial is asked for
+    assert "needs pyserial, which is not installed here" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_an_import_error_that_is_a_bug_keeps_its_traceback(monkeypatch):
     """Only a missing optional package (MissingDependency) is a one-line user error."""
     import brdfjax.commands.data as command

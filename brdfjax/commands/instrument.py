@@ -152,12 +152,17 @@ def scan_plan(args):
                 **{k: v for k, v in options.items() if v is not None})
 
 
-def run_measure(args) -> None:
-    from pathlib import Path
-
+def require_driver() -> None:
+    """pyserial, or the one-line error naming the extra that installs it; asked after the
+    settings are checked, so that a bad setting is named whatever is installed."""
     from brdfjax.optional import require
 
     require("serial", "instrument", "the instrument driver (brdfjax measure)", "pyserial")
+
+
+def run_measure(args) -> None:
+    from pathlib import Path
+
     from brdfjax.instrument.acquire import measure
 
     plan = scan_plan(args)
@@ -170,6 +175,7 @@ def run_measure(args) -> None:
              if getattr(args, name) != default]
     if given:
         raise ValueError(f"{', '.join(given)}: only with --adaptive")
+    require_driver()
     print(f"plan: {len(plan.points)} geometries x (sample + reference); {plan.blocked} "
           "skipped where the detector would block the source", file=sys.stderr)
     result = measure(args.port, plan, args.out, journal=args.journal,
@@ -203,8 +209,8 @@ def run_adaptive(args, region) -> None:
     settings = {"target_width": args.target_width / 100, "model": args.model,
                 "start": args.start, "batch": args.batch, "max_readings": args.max_readings,
                 "max_minutes": args.max_minutes}
-    check_settings(region_geometry(region), candidates,
-                   **settings)
+    check_settings(region_geometry(region), candidates, **settings)
+    require_driver()
     enable()
     print(f"adaptive: predicting over the plan's {len(region.points)} geometries; stop at a "
           f"median 95 % half-width of {args.target_width:g} %", file=sys.stderr)
