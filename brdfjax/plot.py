@@ -624,9 +624,9 @@ def plot_models(data, comparison, path, title: str = "", max_panels: int = 6,
         shown |= same_curves(["five"], curves, 1)
     # The plane of incidence, the normal (in every plane) included.
     drawn_data = data.select((np.abs(np.sin(data.phi_r)) < 1e-9) | (data.theta_r < 1e-9))
+    incidence = np.degrees(drawn_data.theta_i)
     for panel, (ax, fold, (angles, signed)) in enumerate(zip(axes.ravel(), panels,
                                                              panel_angles)):
-        incidence = np.degrees(drawn_data.theta_i)
         subset = drawn_data.select((incidence >= fold.low - 1e-6)
                                    & (incidence <= fold.high + 1e-6))
         ax.plot(signed_angle_deg(subset), subset.brdf * np.cos(subset.theta_r), "o", ms=2.5,

@@ -101,9 +101,8 @@ class Calibration:
             corrected prediction, by the fold's label.
         interior_labels: the labels of the interior folds.
         score: ``sigma`` (the log residual's error over the process's sigma to the power
-            `SIGMA_POWER`) or ``relative`` (``|y - prediction| / (|prediction| +
-            floor)``): with a
-            discrepancy, as `calibrate_all` chooses; without one, ``relative``.
+            `SIGMA_POWER`) or ``relative`` (``|y - prediction| / (|prediction| + floor)``):
+            with a discrepancy, as `calibrate_all` chooses; without one, ``relative``.
     """
 
     interior: np.ndarray
