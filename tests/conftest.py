@@ -12,7 +12,8 @@ import pytest
 # The tests check results, not speed: in-process they compile with LLVM's lowest level (a
 # level given in XLA_FLAGS is kept, and brdfjax keeps it too), which took the suite's CPU
 # time from 25.0 to 21.8 min (all 905 tests passed either way, 2026-12-08). The commands the
-# tests run as new processes (`environment`) compile as a user's do, at brdfjax's level.
+# tests run as new processes with `environment` compile as a user's do, at brdfjax's level;
+# other child processes (the notebooks' kernels) inherit this level.
 # XLA reads the flags when its backend starts, at the first computation: after this.
 if "xla_backend_optimization_level" not in os.environ.get("XLA_FLAGS", ""):
     os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "")
